@@ -1,0 +1,64 @@
+"""The ``urident`` console script: dispatches to one module per subcommand."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from urident import __version__
+from urident.errors import UridentError
+
+# Subcommand modules, in the order `urident --help` lists them (operator's path first).
+COMMANDS = (
+    "demo",
+    "model",
+    "excite",
+    "check_trajectory",
+    "run",
+    "identify",
+    "validate",
+    "gap",
+    "view",
+    "simulate",
+    "sim_controller",
+)
+
+
+def get_argument_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="urident",
+        description="Dynamic parameter identification for Universal Robots arms.",
+    )
+    parser.add_argument("--version", action="version", version=f"urident {__version__}")
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMANDS:
+        module_name = f"urident.cli.cmd_{name}"
+        try:
+            module = importlib.import_module(module_name)
+        except ModuleNotFoundError as exc:
+            if exc.name == module_name:  # subcommand not built yet
+                continue
+            raise
+        module.register(subparsers)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = get_argument_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 1
+    try:
+        return int(args.func(args) or 0)
+    except UridentError as exc:
+        print(f"urident: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        print("urident: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,45 @@
+"""Exception types.
+
+Every error a user can cause (bad file, bad option, unsafe trajectory, lost connection) is an
+:class:`UridentError`. Its message is one line that names the file, line or key at fault; the CLI
+prints it without a traceback and exits non-zero.
+"""
+
+from __future__ import annotations
+
+
+class UridentError(Exception):
+    """Base class of all user-facing errors. ``exit_code`` is what the CLI returns."""
+
+    exit_code = 2
+
+
+class ConfigError(UridentError, ValueError):
+    """A robot, experiment, trajectory or effects file is malformed or inconsistent."""
+
+
+class LogFormatError(UridentError, ValueError):
+    """A log file is malformed, truncated or holds unusable values."""
+
+
+class UnknownRobotError(ConfigError, KeyError):
+    """The requested robot name has no robot file."""
+
+    def __str__(self) -> str:  # KeyError would quote the message
+        return str(self.args[0]) if self.args else ""
+
+
+class SafetyError(UridentError):
+    """A trajectory or robot state failed a safety check; nothing was moved."""
+
+    exit_code = 3
+
+
+class SessionAborted(UridentError):
+    """A running session stopped the robot before the end (monitor, fault or operator)."""
+
+    exit_code = 4
+
+
+class ConnectionLost(SessionAborted, ConnectionError):
+    """The controller stopped answering."""
