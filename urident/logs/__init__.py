@@ -1,1 +1,32 @@
+"""Log format (CSV + YAML sidecar), crash-safe writer, and loaders for urident logs, ur_rtde
+recorder CSVs and headerless foreign CSVs. The format is documented in ``logs/README.md``."""
 
+from .cli_args import add_log_arguments, load_log_from_args
+from .foreign import PRESETS, ColumnMap, ColumnMapError, parse_column_map
+from .reader import describe_dropped, known_robot_names, load_log, parse_row_range
+from .recording import Recording
+from .schema import LOG_FIELDS, OPTIONAL_FIELDS, LogField, field_columns, sidecar_path
+from .sidecar import read_sidecar, sha256_file
+from .writer import LogWriter
+
+__all__ = [
+    "LOG_FIELDS",
+    "OPTIONAL_FIELDS",
+    "PRESETS",
+    "ColumnMap",
+    "ColumnMapError",
+    "LogField",
+    "LogWriter",
+    "Recording",
+    "add_log_arguments",
+    "describe_dropped",
+    "field_columns",
+    "known_robot_names",
+    "load_log",
+    "load_log_from_args",
+    "parse_column_map",
+    "parse_row_range",
+    "read_sidecar",
+    "sha256_file",
+    "sidecar_path",
+]

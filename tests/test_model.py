@@ -1,0 +1,151 @@
+"""Robot files, kinematics against UR's DH parameters, the regressor against Pinocchio, base
+parameters against the paper."""
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from urident.errors import ConfigError, UnknownRobotError
+from urident.model import joint_torques, load_robot, regressor
+from urident.model.base import base_parameters
+from urident.model.kinematics import frame_poses
+from urident.model.parameters import body_params
+from urident.model.pinocchio_model import TorqueModel, build_collision_model, build_model
+
+ROBOTS = ["ur5", "ur5e", "ur10e"]
+
+
+def random_physical_params(rng, spec):
+    """A random but physically valid 78-vector: masses, CoMs, PD inertias, positive drive terms."""
+    p = np.zeros(78)
+    for i in range(6):
+        m = rng.uniform(0.3, 10.0)
+        com = rng.uniform(-0.3, 0.3, 3)
+        a = rng.normal(size=(3, 3))
+        inertia = a @ a.T * 0.01 + 1e-3 * np.eye(3)
+        p[10 * i:10 * i + 10] = body_params(m, com, inertia)
+    p[60:] = rng.uniform(0.01, 5.0, 18)
+    return p
+
+
+def dh_frames(spec, q):
+    out, m = [], np.eye(4)
+    for d, a, alpha, qi in zip(spec.dh["d"], spec.dh["a"], spec.dh["alpha"], q):
+        ct, st, ca, sa = np.cos(qi), np.sin(qi), np.cos(alpha), np.sin(alpha)
+        m = m @ np.array([[ct, -st * ca, st * sa, a * ct], [st, ct * ca, -ct * sa, a * st],
+                          [0, sa, ca, d], [0, 0, 0, 1]])
+        out.append(m.copy())
+    return out
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_frames_reproduce_ur_dh_kinematics(name, rng):
+    spec = load_robot(name)
+    base_to_controller = np.diag([-1.0, -1.0, 1.0])  # K_0 is the controller base rotated by pi about z
+    for q in rng.uniform(-np.pi, np.pi, (20, 6)):
+        _, pos = frame_poses(spec, q[None])
+        tool_dh = dh_frames(spec, q)[-1][:3, 3]
+        np.testing.assert_allclose(base_to_controller @ pos[0, 6], tool_dh, atol=1e-12)
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_regressor_equals_pinocchio_plus_rotor_and_friction(name, rng):
+    spec = load_robot(name)
+    for trial in range(3):
+        p = random_physical_params(rng, spec)
+        eps = rng.uniform(0.005, 0.1)
+        q, qd, qdd = rng.uniform(-3, 3, (3, 40, 6))
+        tau = joint_torques(spec, p, q, qd, qdd, friction_eps=eps)
+        model = TorqueModel(spec, p, friction_eps=eps)
+        expected = model.torques(q, qd, qdd)
+        rel = np.abs(tau - expected).max() / np.abs(expected).max()
+        assert rel < 1e-9
+
+
+def test_regressor_layout_is_sample_major(rng):
+    spec = load_robot("ur5")
+    q, qd, qdd = rng.uniform(-2, 2, (3, 7, 6))
+    w = regressor(spec, q, qd, qdd)
+    assert w.shape == (42, 78)
+    p = spec.nominal_params
+    np.testing.assert_allclose((w @ p).reshape(7, 6), joint_torques(spec, p, q, qd, qdd))
+    single = regressor(spec, q[3:4], qd[3:4], qdd[3:4])
+    np.testing.assert_allclose(w[18:24], single)
+
+
+def test_nominal_gravity_torque_matches_pinocchio_model(rng):
+    spec = load_robot("ur5")
+    model = build_model(spec)
+    data = model.createData()
+    q = rng.uniform(-3, 3, 6)
+    g = pin.computeGeneralizedGravity(model, data, q)
+    zero = np.zeros((1, 6))
+    tau = joint_torques(spec, spec.nominal_params, q[None], zero, zero)[0]
+    np.testing.assert_allclose(tau, g, atol=1e-9)
+    # Sanity: a horizontal arm (q2 = 0) needs a large shoulder torque against gravity.
+    assert abs(joint_torques(spec, spec.nominal_params, zero, zero, zero)[0, 1]) > 30.0
+
+
+@pytest.mark.parametrize("name", ROBOTS)
+def test_base_parameter_counts(name):
+    spec = load_robot(name)
+    assert base_parameters(spec).n_base == 52
+    assert base_parameters(spec, reduced=True).n_base == 33
+
+
+@pytest.mark.parametrize("reduced", [False, True])
+def test_base_regressor_reproduces_full_model(reduced, rng):
+    spec = load_robot("ur5")
+    base = base_parameters(spec, reduced=reduced)
+    p = random_physical_params(rng, spec)
+    mask = np.zeros(78, dtype=bool)
+    mask[base.modelled] = True
+    p[~mask] = 0.0
+    q, qd, qdd = rng.uniform(-3, 3, (3, 30, 6))
+    w = regressor(spec, q, qd, qdd)
+    np.testing.assert_allclose(base.columns(w) @ base.from_standard(p), w @ p, rtol=1e-9, atol=1e-9)
+
+
+def test_base_parameter_expressions_match_paper_structure():
+    spec = load_robot("ur5")
+    expressions = dict(zip(base_parameters(spec).names, base_parameters(spec).expressions()))
+    # Paper eq. (42), with our K2 placement (the numbers depend only on the UR5's link lengths).
+    assert expressions["B3"] == "B3 + 0.1539 m4 + 0.1539 m5 + 0.1539 m6"
+    assert expressions["A4"] == "A4 - C4 + B5 + 0.008959 m6"
+    assert expressions["C5"] == "C5 + C6"
+    assert expressions["A5"] == "A5 - B5 + C6"
+    assert expressions["mrz2"] == "mrz2 + 0.425 m3 + 0.425 m4 + 0.425 m5 + 0.425 m6"
+    reduced = dict(zip(base_parameters(spec, reduced=True).names,
+                       base_parameters(spec, reduced=True).expressions()))
+    assert reduced["m3"] == "m3 + m4 + m5 + m6"
+    assert reduced["B2"] == "B2 + IM2"
+
+
+def test_unknown_robot_and_malformed_files(tmp_path):
+    with pytest.raises(UnknownRobotError, match="unknown robot 'ur99'.*ur10e, ur5, ur5e"):
+        load_robot("ur99")
+    good = load_robot("ur5").source.read_text()
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(good.replace("torque_limit: 150.0", "torque_limt: 150.0", 1))
+    with pytest.raises(ConfigError, match=r"bad.yaml: unknown key 'joints\[0\].torque_limt'"):
+        load_robot(bad)
+    bad.write_text(good.replace("mass: 3.7", "mass: -3.7"))
+    with pytest.raises(ConfigError, match=r"joints\[0\].link.mass' must be positive"):
+        load_robot(bad)
+    bad.write_text("name: [unclosed\n")
+    with pytest.raises(ConfigError, match=r"bad.yaml:\d+: malformed YAML"):
+        load_robot(bad)
+
+
+def test_collision_model_distances(rng):
+    spec = load_robot("ur5")
+    model = build_model(spec)
+    geom = build_collision_model(spec, model)
+    assert len(geom.collisionPairs) > 10
+    data, gdata = model.createData(), pin.GeometryData(geom)
+    q_up = np.array([0.0, -np.pi / 2, 0.0, -np.pi / 2, 0.0, 0.0])  # arm pointing up
+    pin.computeDistances(model, data, geom, gdata, q_up)
+    assert min(r.min_distance for r in gdata.distanceResults) > 0.0
+    q_folded = np.array([0.0, -np.pi / 2, 2.9, 0.0, 0.0, 0.0])  # forearm folded into the upper arm
+    pin.computeDistances(model, data, geom, gdata, q_folded)
+    assert min(r.min_distance for r in gdata.distanceResults) < 0.0

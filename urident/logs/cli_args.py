@@ -1,0 +1,74 @@
+"""Shared command-line options for subcommands that read logs (identify, validate, gap, view).
+
+    add_log_arguments(parser)                     # --format, --columns, --rows, --drop-bad
+    rec = load_log_from_args(args.log, args, robot=args.robot)
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import TextIO
+
+from .foreign import PRESETS
+from .reader import describe_dropped, load_log, parse_row_range
+from .recording import Recording
+
+
+def add_log_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the log-reading options to a subcommand parser."""
+    group = parser.add_argument_group("log input")
+    presets = ", ".join(f"{k} ({v[1]})" for k, v in PRESETS.items())
+    group.add_argument(
+        "--format",
+        dest="log_format",
+        metavar="NAME",
+        default=None,
+        help="log format: urident, ur_rtde (auto-detected) or a preset for headerless CSVs: "
+        + presets,
+    )
+    group.add_argument(
+        "--columns",
+        dest="log_columns",
+        metavar="MAP",
+        default=None,
+        help="column map of a headerless CSV, 0-based, stop excluded: "
+        "'t=0,q=1:7,qd=7:13,current=13:19' or a layout 't,q,qd,i'",
+    )
+    group.add_argument(
+        "--rows",
+        dest="log_rows",
+        metavar="FIRST-LAST",
+        default=None,
+        type=parse_row_range,
+        help="use data rows FIRST..LAST only (1-based, inclusive, header not counted)",
+    )
+    group.add_argument(
+        "--drop-bad",
+        dest="log_drop_bad",
+        action="store_true",
+        help="drop corrupt rows (reported) instead of rejecting the log",
+    )
+
+
+def load_log_from_args(
+    path: str | Path,
+    args: argparse.Namespace,
+    robot: str | None = None,
+    report: TextIO | None = None,
+) -> Recording:
+    """``load_log`` with the options of :func:`add_log_arguments`; prints the drop report
+    (to stderr by default) when rows were dropped."""
+    recording = load_log(
+        path,
+        robot=robot,
+        rows=getattr(args, "log_rows", None),
+        drop_bad=getattr(args, "log_drop_bad", False),
+        column_map=getattr(args, "log_columns", None),
+        format=getattr(args, "log_format", None),
+    )
+    line = describe_dropped(recording)
+    if line:
+        print(f"urident: warning: {line}", file=report or sys.stderr)
+    return recording

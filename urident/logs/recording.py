@@ -1,0 +1,128 @@
+"""The :class:`Recording` dataclass every loader returns."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from .schema import STATUS_UNKNOWN
+
+_JOINT_ATTRS = (
+    "q",
+    "qd",
+    "current",
+    "target_q",
+    "target_qd",
+    "target_qdd",
+    "target_current",
+    "target_moment",
+    "temperature",
+    "tau",
+)
+_SCALAR_ATTRS = ("robot_mode", "safety_status_bits", "runtime_state")
+
+
+@dataclass(frozen=True, eq=False)
+class Recording:
+    """One loaded log: sample-major arrays in SI units (temperatures in °C), read-only.
+
+    ``t (N,)`` s; ``q, qd, current (N, 6)`` rad, rad/s, A; optional ``target_* (N, 6)``,
+    ``temperature (N, 6)``, ``tau (N, 6)`` N·m (joint torque, only when the log carries one);
+    optional integer ``robot_mode, safety_status_bits, runtime_state (N,)``. ``metadata`` holds the
+    sidecar (own logs) or the format description (others), plus ``dropped`` (rows removed under
+    ``drop_bad``), ``duplicates_removed`` and ``status``.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    current: np.ndarray
+    source: Path | None = None
+    robot: str | None = None
+    rate_hz: float | None = None
+    metadata: Mapping[str, Any] = field(default_factory=dict)
+    target_q: np.ndarray | None = None
+    target_qd: np.ndarray | None = None
+    target_qdd: np.ndarray | None = None
+    target_current: np.ndarray | None = None
+    target_moment: np.ndarray | None = None
+    temperature: np.ndarray | None = None
+    tau: np.ndarray | None = None
+    robot_mode: np.ndarray | None = None
+    safety_status_bits: np.ndarray | None = None
+    runtime_state: np.ndarray | None = None
+    #: columns the loader did not map (header name -> (N,) or (N, 6) array)
+    extra: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        t = np.array(self.t, dtype=np.float64).reshape(-1)
+        n = t.shape[0]
+        object.__setattr__(self, "t", _freeze(t))
+        for name in _JOINT_ATTRS:
+            value = getattr(self, name)
+            if value is None:
+                continue
+            arr = np.array(value, dtype=np.float64)
+            if arr.shape != (n, 6):
+                raise ValueError(f"Recording.{name} must have shape ({n}, 6), got {arr.shape}")
+            object.__setattr__(self, name, _freeze(arr))
+        for name in _SCALAR_ATTRS:
+            value = getattr(self, name)
+            if value is None:
+                continue
+            arr = np.array(value, dtype=np.int64).reshape(-1)
+            if arr.shape != (n,):
+                raise ValueError(f"Recording.{name} must have shape ({n},), got {arr.shape}")
+            object.__setattr__(self, name, _freeze(arr))
+        extra = {}
+        for key, value in dict(self.extra).items():
+            arr = np.array(value)
+            if arr.shape[:1] != (n,):
+                raise ValueError(f"Recording.extra[{key!r}] must have {n} rows, got {arr.shape}")
+            extra[key] = _freeze(arr)
+        object.__setattr__(self, "extra", extra)
+        if self.source is not None:
+            object.__setattr__(self, "source", Path(self.source))
+        object.__setattr__(self, "metadata", dict(self.metadata))
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+    @property
+    def n_samples(self) -> int:
+        return len(self)
+
+    @property
+    def duration(self) -> float:
+        """``t[-1] - t[0]`` in s (0 for fewer than two samples)."""
+        return float(self.t[-1] - self.t[0]) if len(self) > 1 else 0.0
+
+    @property
+    def status(self) -> str:
+        """Sidecar status: completed, aborted, running (writer crashed or still writing), unknown."""
+        return str(self.metadata.get("status") or STATUS_UNKNOWN)
+
+    @property
+    def dropped(self) -> Mapping[str, Any]:
+        """Report of rows removed by ``drop_bad`` (``{"count": 0, ...}`` when none)."""
+        return self.metadata.get("dropped") or {"count": 0, "reasons": {}, "lines": []}
+
+    def select(self, index) -> "Recording":
+        """A new Recording with samples ``index`` (slice, boolean mask or integer array)."""
+        changes: dict[str, Any] = {"t": self.t[index]}
+        for name in _JOINT_ATTRS + _SCALAR_ATTRS:
+            value = getattr(self, name)
+            if value is not None:
+                changes[name] = value[index]
+        changes["extra"] = {k: v[index] for k, v in self.extra.items()}
+        return dataclasses.replace(self, **changes)
+
+
+def _freeze(arr: np.ndarray) -> np.ndarray:
+    arr = np.ascontiguousarray(arr)
+    arr.flags.writeable = False
+    return arr

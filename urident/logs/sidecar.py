@@ -1,0 +1,159 @@
+"""The YAML sidecar (``LOG.yaml`` beside ``LOG.csv``): atomic write, validated read."""
+
+from __future__ import annotations
+
+import datetime as _dt
+import hashlib
+import math
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from urident.errors import LogFormatError
+
+from .schema import FORMAT_NAME, SIDECAR_KEYS, STATUSES
+
+
+def utc_now_iso() -> str:
+    """Current time, ISO 8601 UTC with µs and a ``Z`` suffix."""
+    now = _dt.datetime.now(_dt.timezone.utc)
+    return now.strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+
+
+def sha256_file(path: str | Path) -> str:
+    """Hex SHA-256 of a file's bytes."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+def write_sidecar(path: str | Path, data: dict[str, Any]) -> None:
+    """Write ``data`` as YAML atomically (temp file, fsync, rename), so a crash leaves either the
+    old or the new sidecar, never half of one."""
+    path = Path(path)
+    text = yaml.safe_dump(_plain(data), sort_keys=False, default_flow_style=None, width=100)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+    _fsync_dir(path.parent)
+
+
+def _fsync_dir(directory: Path) -> None:
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def _plain(value: Any) -> Any:
+    """Convert numpy scalars/arrays, tuples and paths to plain YAML-safe Python values."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, Path):
+        return str(value)
+    if hasattr(value, "tolist"):  # numpy array or scalar
+        return _plain(value.tolist())
+    if isinstance(value, (str, int, float, bool)) or value is None:
+        return value
+    return str(value)
+
+
+def read_sidecar(path: str | Path) -> dict[str, Any]:
+    """Read and validate a sidecar; any defect is a one-line LogFormatError naming the key."""
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise LogFormatError(f"{path}: cannot read sidecar: {exc.strerror or exc}") from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise LogFormatError(f"{path}: sidecar is not UTF-8 text (byte {exc.start})") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark
+        line = f":{mark.line + 1}" if mark is not None else ""
+        problem = (exc.problem or "malformed YAML").replace("\n", " ")
+        raise LogFormatError(f"{path}{line}: sidecar is not valid YAML: {problem}") from None
+    except Exception as exc:  # noqa: BLE001 - any parser failure on untrusted input
+        msg = str(exc).replace("\n", " ")[:120]
+        raise LogFormatError(f"{path}: sidecar is not valid YAML: {msg}") from None
+    if data is None:
+        raise LogFormatError(f"{path}: sidecar is empty")
+    if not isinstance(data, dict):
+        raise LogFormatError(f"{path}: sidecar must be a YAML mapping, got {type(data).__name__}")
+    out: dict[str, Any] = {}
+    for key, value in data.items():
+        if not isinstance(key, str):
+            raise LogFormatError(f"{path}: sidecar key {key!r} is not a string")
+        if isinstance(value, (_dt.datetime, _dt.date)):
+            value = value.isoformat()
+        out[key] = value
+        if key not in SIDECAR_KEYS or value is None:
+            continue
+        types = SIDECAR_KEYS[key]
+        if isinstance(value, bool) or not isinstance(value, types):
+            names = " or ".join(t.__name__ for t in types)
+            raise LogFormatError(
+                f"{path}: sidecar key {key!r} must be {names}, got {type(value).__name__}"
+            )
+    _check_values(path, out)
+    return out
+
+
+def _check_values(path: Path, data: dict[str, Any]) -> None:
+    fmt = data.get("format")
+    if fmt is not None and fmt != FORMAT_NAME:
+        raise LogFormatError(f"{path}: sidecar key 'format' is {fmt!r}, expected {FORMAT_NAME!r}")
+    status = data.get("status")
+    if status is not None and status not in STATUSES:
+        raise LogFormatError(
+            f"{path}: sidecar key 'status' is {status!r}, expected one of {', '.join(STATUSES)}"
+        )
+    rate = data.get("rate_hz")
+    if rate is not None and not (math.isfinite(rate) and 0 < rate <= 1e6):
+        raise LogFormatError(f"{path}: sidecar key 'rate_hz' must be a positive rate, got {rate}")
+    for key in ("late_cycles", "duplicates_skipped", "n_samples", "format_version"):
+        value = data.get(key)
+        if value is not None and value < 0:
+            raise LogFormatError(f"{path}: sidecar key {key!r} must be >= 0, got {value}")
+    for key in ("gear_ratios", "torque_constants"):
+        value = data.get(key)
+        if value is None:
+            continue
+        ok = len(value) == 6 and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+            for v in value
+        )
+        if not ok:
+            raise LogFormatError(f"{path}: sidecar key {key!r} must be a list of 6 finite numbers")
+    columns = data.get("columns")
+    if columns is not None and not all(isinstance(c, str) for c in columns):
+        raise LogFormatError(f"{path}: sidecar key 'columns' must be a list of column names")
+    robot = data.get("robot")
+    if robot is not None and not robot.strip():
+        raise LogFormatError(f"{path}: sidecar key 'robot' is empty")

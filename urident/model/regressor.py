@@ -1,0 +1,131 @@
+"""The paper's regressor Θ(q, q̇, q̈) ∈ R^{6×78} (eq. 38), vectorised over samples.
+
+Method: a forward recursion gives each body's angular velocity, angular acceleration and the
+acceleration of its joint-frame origin (gravity folded in as a base acceleration). Each body's
+wrench at its frame origin is linear in its ten parameters, ``w_i = Y_i p_i`` with Y_i (6×10).
+The torque it causes at joint j ≤ i is the projection of that wrench on joint j's motion subspace
+seen from K_i (``[z_j × (o_i − o_j); z_j]`` in K_i coordinates), so every block of Θ is one small
+product, with no per-sample Python loop. Rotor inertia and friction add diagonal columns.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from urident.model.kinematics import AXIS_INDEX, joint_rotations
+from urident.model.parameters import COULOMB_OFFSET, ROTOR_OFFSET, VISCOUS_OFFSET
+from urident.model.robot import N_PARAMS, RobotSpec
+
+DEFAULT_FRICTION_EPS = 0.01  # [rad/s] slope of tanh(q̇/ε) ≈ sign(q̇)
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross product of component-major vectors (3, ...), broadcasting the rest."""
+    return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+def _rotate_t(fixed_t: np.ndarray | None, axis: str, c: np.ndarray, s: np.ndarray,
+              v: np.ndarray) -> np.ndarray:
+    """R^T v for R = fixed · Rot_axis(q), component-major v (3, ...), c = cos q, s = sin q."""
+    if fixed_t is not None:
+        v = np.tensordot(fixed_t, v, axes=1)
+    if axis == "z":
+        return np.stack([c * v[0] + s * v[1], c * v[1] - s * v[0], v[2]])
+    if axis == "y":
+        return np.stack([c * v[0] - s * v[2], v[1], s * v[0] + c * v[2]])
+    return np.stack([v[0], c * v[1] + s * v[2], c * v[2] - s * v[1]])
+
+
+def _body_wrench_regressor(w: np.ndarray, wd: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """Y (6, 10, N): force (rows 0-2) and moment (rows 3-5) about the body frame origin, linear in
+    (m, mρx, mρy, mρz, A, B, C, D, E, F), from the body's angular velocity ``w``, angular
+    acceleration ``wd`` and origin acceleration ``a`` (gravity included), all (3, N) in its frame:
+    f = m a + (ω̇^ + ω^ω^) h and n = h × a + J ω̇ + ω × (J ω)."""
+    y = np.zeros((6, 10, w.shape[1]))
+    wx, wy, wz = w
+    dx, dy, dz = wd
+    ax, ay, az = a
+    wxx, wyy, wzz, wxy, wxz, wyz = wx * wx, wy * wy, wz * wz, wx * wy, wx * wz, wy * wz
+    y[0:3, 0] = a
+    y[0, 1], y[0, 2], y[0, 3] = -wyy - wzz, wxy - dz, wxz + dy
+    y[1, 1], y[1, 2], y[1, 3] = wxy + dz, -wxx - wzz, wyz - dx
+    y[2, 1], y[2, 2], y[2, 3] = wxz - dy, wyz + dx, -wxx - wyy
+    y[3, 2], y[3, 3] = az, -ay
+    y[4, 1], y[4, 3] = -az, ax
+    y[5, 1], y[5, 2] = ay, -ax
+    y[3, 4], y[3, 5], y[3, 6] = dx, -wyz, wyz
+    y[3, 7], y[3, 8], y[3, 9] = wzz - wyy, -dz - wxy, -dy + wxz
+    y[4, 4], y[4, 5], y[4, 6] = wxz, dy, -wxz
+    y[4, 7], y[4, 8], y[4, 9] = -dz + wxy, wxx - wzz, -dx - wyz
+    y[5, 4], y[5, 5], y[5, 6] = -wxy, wxy, dz
+    y[5, 7], y[5, 8], y[5, 9] = -dy - wxz, -dx + wyz, wyy - wxx
+    return y
+
+
+def regressor(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+              friction_eps: float = DEFAULT_FRICTION_EPS) -> np.ndarray:
+    """Stacked regressor (6N, 78) for (N, 6) joint positions, velocities and accelerations;
+    row ``6k + j`` is joint j at sample k, so ``regressor(...) @ p == tau.reshape(-1)``."""
+    return regressor_blocks(spec, q, qd, qdd, friction_eps).reshape(-1, N_PARAMS)
+
+
+def regressor_blocks(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+                     friction_eps: float = DEFAULT_FRICTION_EPS,
+                     chunk: int = 4096) -> np.ndarray:
+    """The same regressor as an (N, 6, 78) array, computed ``chunk`` samples at a time (keeps the
+    intermediates in cache)."""
+    q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
+    if not (q.shape == qd.shape == qdd.shape) or q.ndim != 2 or q.shape[1] != 6:
+        raise ValueError(f"q, qd, qdd must be (N, 6) arrays, got {q.shape}, {qd.shape}, {qdd.shape}")
+    if not friction_eps > 0:
+        raise ValueError(f"friction_eps must be positive, got {friction_eps}")
+    out = np.zeros((q.shape[0], 6, N_PARAMS))
+    for start in range(0, q.shape[0], chunk):
+        stop = start + chunk
+        _fill(spec, q[start:stop], qd[start:stop], qdd[start:stop], friction_eps, out[start:stop])
+    return out
+
+
+def _fill(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, friction_eps: float,
+          out: np.ndarray) -> None:
+    n = q.shape[0]
+    q_t, qd_t, qdd_t = q.T, qd.T, qdd.T
+    w = np.zeros((3, n))
+    wd = np.zeros((3, n))
+    a = np.repeat(-spec.gravity[:, None], n, axis=1)  # gravity as a base acceleration
+    # For every ancestor joint k ≤ i: z_k × (o_i − o_k) (lin) and z_k (ang), in K_i, shape (3, i+1, N).
+    lin = np.zeros((3, 0, n))
+    ang = np.zeros((3, 0, n))
+    for i, joint in enumerate(spec.joints):
+        fixed_t = None if np.array_equal(joint.rotation, np.eye(3)) else joint.rotation.T
+        c, s = np.cos(q_t[i]), np.sin(q_t[i])
+        p = joint.xyz[:, None]
+        axis = AXIS_INDEX[joint.axis]
+        # The origin's acceleration uses the parent's ω and ω̇.
+        a = _rotate_t(fixed_t, joint.axis, c, s, a + _cross(wd, p) + _cross(w, _cross(w, p)))
+        w = _rotate_t(fixed_t, joint.axis, c, s, w)
+        wd = _rotate_t(fixed_t, joint.axis, c, s, wd)
+        unit = np.zeros((3, 1))
+        unit[axis] = 1.0
+        wd += _cross(w, unit) * qd_t[i]  # ω_parent × q̇ z
+        wd[axis] += qdd_t[i]
+        w[axis] += qd_t[i]
+        if i:
+            lin = _rotate_t(fixed_t, joint.axis, c, s, lin + _cross(ang, p[:, :, None]))
+            ang = _rotate_t(fixed_t, joint.axis, c, s, ang)
+        lin = np.concatenate([lin, np.zeros((3, 1, n))], axis=1)
+        ang = np.concatenate([ang, np.broadcast_to(unit[:, :, None], (3, 1, n))], axis=1)
+        y = np.ascontiguousarray(_body_wrench_regressor(w, wd, a).transpose(2, 0, 1))  # (N, 6, 10)
+        motion = np.ascontiguousarray(np.concatenate([lin, ang]).transpose(2, 1, 0))  # (N, i+1, 6)
+        # τ_k gets v_k · f_i + u_k · n_i from body i, for every joint k ≤ i.
+        out[:, : i + 1, 10 * i:10 * i + 10] = motion @ y
+    joints = np.arange(6)
+    out[:, joints, ROTOR_OFFSET + joints] = qdd
+    out[:, joints, VISCOUS_OFFSET + joints] = qd
+    out[:, joints, COULOMB_OFFSET + joints] = np.tanh(qd / friction_eps)
+
+
+def joint_torques(spec: RobotSpec, params: np.ndarray, q: np.ndarray, qd: np.ndarray,
+                  qdd: np.ndarray, friction_eps: float = DEFAULT_FRICTION_EPS) -> np.ndarray:
+    """(N, 6) joint torques Θ(q, q̇, q̈)·p [N m] for a 78-vector ``params``."""
+    return regressor_blocks(spec, q, qd, qdd, friction_eps) @ np.asarray(params, dtype=float)

@@ -1,0 +1,307 @@
+"""Robot descriptions: one YAML file per robot under ``urident/model/robots/``, loaded into a
+frozen :class:`RobotSpec`.
+
+A robot file holds the joint frames in the paper's convention (fixed placement of K_i in K_{i-1},
+then a rotation about the joint axis), the joint limits, the drive (gear ratio, motor torque
+constant, reflected rotor inertia, friction), the nominal link inertial parameters and capsule
+collision geometry. See ``robots/ur5.yaml`` for the documented format.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from urident.errors import ConfigError, UnknownRobotError
+
+ROBOTS_DIR = Path(__file__).parent / "robots"
+N_JOINTS = 6
+PARAMS_PER_BODY = 10
+N_PARAMS = 13 * N_JOINTS  # 60 rigid-body + 6 rotor + 6 viscous + 6 Coulomb
+
+_TOP_KEYS = {"name", "description", "generation", "controller_rate_hz", "controller_version",
+             "gravity", "dh", "base_collision", "tool", "joints", "allowed_contacts"}
+_JOINT_KEYS = {"name", "xyz", "rpy", "axis", "position_limits", "velocity_limit",
+               "acceleration_limit", "torque_limit", "gear_ratio", "torque_constant",
+               "rotor_inertia", "viscous_friction", "coulomb_friction", "link"}
+_LINK_KEYS = {"mass", "com", "inertia_com", "collision"}
+_CAPSULE_KEYS = {"a", "b", "radius"}
+
+
+@dataclass(frozen=True)
+class Capsule:
+    """A segment a→b [m] swept by a sphere of ``radius`` [m], in its body's frame."""
+
+    a: np.ndarray
+    b: np.ndarray
+    radius: float
+
+
+@dataclass(frozen=True)
+class Joint:
+    """One revolute joint and the link (body) it moves."""
+
+    name: str
+    xyz: np.ndarray            # origin of K_i in K_{i-1} [m]
+    rotation: np.ndarray       # fixed rotation of K_i relative to K_{i-1} (3, 3)
+    axis: str                  # 'x', 'y' or 'z' of K_i
+    q_min: float               # [rad]
+    q_max: float               # [rad]
+    qd_max: float              # [rad/s]
+    qdd_max: float             # [rad/s^2]
+    tau_max: float             # [N m]
+    gear_ratio: float          # i_G [-]
+    torque_constant: float     # motor side k [N m / A]
+    rotor_inertia: float       # reflected i_G^2 C_M [kg m^2]
+    viscous_friction: float    # r_v [N m s / rad]
+    coulomb_friction: float    # r_c [N m]
+    mass: float                # [kg]
+    com: np.ndarray            # centre of mass in K_i [m]
+    inertia_com: np.ndarray    # (3, 3) inertia about the centre of mass, K_i axes [kg m^2]
+    collision: tuple[Capsule, ...]
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """Everything urident knows about one robot model, in SI units."""
+
+    name: str
+    description: str
+    generation: str                     # 'cb3' or 'e-series'
+    controller_rate_hz: float
+    controller_version: tuple[int, ...]
+    gravity: np.ndarray                 # (3,) in the base frame [m/s^2]
+    joints: tuple[Joint, ...]
+    tool_xyz: np.ndarray
+    tool_rotation: np.ndarray
+    base_collision: tuple[Capsule, ...]
+    allowed_contacts: frozenset[frozenset[str]]
+    dh: dict[str, np.ndarray]
+    source: Path
+    arrays: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        def stack(attr: str) -> np.ndarray:
+            values = np.array([getattr(j, attr) for j in self.joints], dtype=float)
+            values.setflags(write=False)
+            return values
+
+        for attr in ("q_min", "q_max", "qd_max", "qdd_max", "tau_max", "gear_ratio",
+                     "torque_constant", "rotor_inertia", "viscous_friction", "coulomb_friction"):
+            self.arrays[attr] = stack(attr)
+        gains = self.arrays["gear_ratio"] * self.arrays["torque_constant"]
+        gains.setflags(write=False)
+        self.arrays["drive_gains"] = gains
+
+    # Per-joint arrays (6,), read-only.
+    q_min = property(lambda self: self.arrays["q_min"])
+    q_max = property(lambda self: self.arrays["q_max"])
+    qd_max = property(lambda self: self.arrays["qd_max"])
+    qdd_max = property(lambda self: self.arrays["qdd_max"])
+    tau_max = property(lambda self: self.arrays["tau_max"])
+    gear_ratios = property(lambda self: self.arrays["gear_ratio"])
+    torque_constants = property(lambda self: self.arrays["torque_constant"])
+    drive_gains = property(lambda self: self.arrays["drive_gains"])  # i_G * k [N m / A]
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return tuple(j.name for j in self.joints)
+
+    @property
+    def nominal_params(self) -> np.ndarray:
+        """The paper's 78-vector (eq. 39-40) of this robot's nominal parameters."""
+        from urident.model.parameters import standard_from_links
+
+        return standard_from_links(self)
+
+
+def available_robots() -> list[str]:
+    return sorted(p.stem for p in ROBOTS_DIR.glob("*.yaml"))
+
+
+def load_robot(name_or_path: str | Path) -> RobotSpec:
+    """Load a robot by name (``ur5``, ``ur5e``, ``ur10e``) or from a YAML file path."""
+    text = str(name_or_path)
+    if text.endswith((".yaml", ".yml")) or "/" in text:
+        path = Path(text)
+        if not path.is_file():
+            raise ConfigError(f"{path}: robot file not found")
+    else:
+        path = ROBOTS_DIR / f"{text.lower()}.yaml"
+        if not path.is_file():
+            raise UnknownRobotError(
+                f"unknown robot '{text}'; available robots: {', '.join(available_robots())} "
+                f"(or give the path of a robot file)")
+    return _parse(path)
+
+
+def _parse(path: Path) -> RobotSpec:
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f":{mark.line + 1}" if mark is not None else ""
+        raise ConfigError(f"{path}{where}: malformed YAML ({getattr(exc, 'problem', exc)})") from None
+    reader = _Reader(path)
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: expected a mapping at the top level")
+    reader.keys(data, _TOP_KEYS, "")
+    joints_data = reader.get(data, "joints", list)
+    if len(joints_data) != N_JOINTS:
+        raise ConfigError(f"{path}: key 'joints' must list {N_JOINTS} joints, found {len(joints_data)}")
+    joints = tuple(_parse_joint(reader, jd, f"joints[{i}]") for i, jd in enumerate(joints_data))
+    generation = reader.get(data, "generation", str)
+    if generation not in ("cb3", "e-series"):
+        raise ConfigError(f"{path}: key 'generation' must be 'cb3' or 'e-series', not {generation!r}")
+    version_text = str(reader.get(data, "controller_version", (str, int, float)))
+    try:
+        version = tuple(int(v) for v in version_text.split("."))
+    except ValueError:
+        raise ConfigError(f"{path}: key 'controller_version' must look like 5.11.0") from None
+    tool = reader.get(data, "tool", dict)
+    reader.keys(tool, {"xyz", "rpy"}, "tool")
+    names = [j.name for j in joints]
+    allowed = []
+    for k, pair in enumerate(data.get("allowed_contacts", []) or []):
+        if (not isinstance(pair, list) or len(pair) != 2
+                or not all(isinstance(n, str) and n in names + ["base"] for n in pair)):
+            raise ConfigError(f"{path}: key 'allowed_contacts[{k}]' must be a pair of joint names")
+        allowed.append(frozenset(pair))
+    dh = reader.get(data, "dh", dict)
+    reader.keys(dh, {"d", "a", "alpha"}, "dh")
+    rate = float(reader.number(data, "controller_rate_hz", "", positive=True))
+    return RobotSpec(
+        name=reader.get(data, "name", str),
+        description=str(data.get("description", "")),
+        generation=generation,
+        controller_rate_hz=rate,
+        controller_version=version,
+        gravity=reader.vector(data, "gravity", "", 3),
+        joints=joints,
+        tool_xyz=reader.vector(tool, "xyz", "tool", 3),
+        tool_rotation=rpy_to_matrix(reader.vector(tool, "rpy", "tool", 3)),
+        base_collision=tuple(_parse_capsules(reader, data.get("base_collision", []), "base_collision")),
+        allowed_contacts=frozenset(allowed),
+        dh={k: reader.vector(dh, k, "dh", N_JOINTS) for k in ("d", "a", "alpha")},
+        source=path,
+    )
+
+
+def _parse_joint(reader: "_Reader", jd: Any, where: str) -> Joint:
+    if not isinstance(jd, dict):
+        raise ConfigError(f"{reader.path}: key '{where}' must be a mapping")
+    reader.keys(jd, _JOINT_KEYS, where)
+    axis = reader.get(jd, "axis", str, where)
+    if axis not in ("x", "y", "z"):
+        raise ConfigError(f"{reader.path}: key '{where}.axis' must be x, y or z, not {axis!r}")
+    limits = reader.vector(jd, "position_limits", where, 2)
+    if not limits[0] < limits[1]:
+        raise ConfigError(f"{reader.path}: key '{where}.position_limits' must be [lower, upper] with lower < upper")
+    link = reader.get(jd, "link", dict, where)
+    lw = f"{where}.link"
+    reader.keys(link, _LINK_KEYS, lw)
+    inertia = reader.vector(link, "inertia_com", lw, 6)  # Ixx, Iyy, Izz, Ixy, Ixz, Iyz
+    inertia_com = np.array([[inertia[0], inertia[3], inertia[4]],
+                            [inertia[3], inertia[1], inertia[5]],
+                            [inertia[4], inertia[5], inertia[2]]])
+    if np.linalg.eigvalsh(inertia_com).min() < 0:
+        raise ConfigError(f"{reader.path}: key '{lw}.inertia_com' is not positive semi-definite")
+    num = lambda key, **kw: float(reader.number(jd, key, where, **kw))  # noqa: E731
+    return Joint(
+        name=reader.get(jd, "name", str, where),
+        xyz=reader.vector(jd, "xyz", where, 3),
+        rotation=rpy_to_matrix(reader.vector(jd, "rpy", where, 3)),
+        axis=axis,
+        q_min=float(limits[0]), q_max=float(limits[1]),
+        qd_max=num("velocity_limit", positive=True),
+        qdd_max=num("acceleration_limit", positive=True),
+        tau_max=num("torque_limit", positive=True),
+        gear_ratio=num("gear_ratio", positive=True),
+        torque_constant=num("torque_constant", positive=True),
+        rotor_inertia=num("rotor_inertia", nonnegative=True),
+        viscous_friction=num("viscous_friction", nonnegative=True),
+        coulomb_friction=num("coulomb_friction", nonnegative=True),
+        mass=float(reader.number(link, "mass", lw, positive=True)),
+        com=reader.vector(link, "com", lw, 3),
+        inertia_com=inertia_com,
+        collision=tuple(_parse_capsules(reader, link.get("collision", []), f"{lw}.collision")),
+    )
+
+
+def _parse_capsules(reader: "_Reader", items: Any, where: str) -> list[Capsule]:
+    if not isinstance(items, list):
+        raise ConfigError(f"{reader.path}: key '{where}' must be a list of capsules")
+    capsules = []
+    for k, item in enumerate(items):
+        w = f"{where}[{k}]"
+        if not isinstance(item, dict):
+            raise ConfigError(f"{reader.path}: key '{w}' must be a mapping with a, b, radius")
+        reader.keys(item, _CAPSULE_KEYS, w)
+        capsules.append(Capsule(reader.vector(item, "a", w, 3), reader.vector(item, "b", w, 3),
+                                float(reader.number(item, "radius", w, positive=True))))
+    return capsules
+
+
+class _Reader:
+    """Typed access to a parsed YAML mapping with errors that name the file and key path."""
+
+    def __init__(self, path: Path):
+        self.path = path
+
+    def _name(self, where: str, key: str) -> str:
+        return f"{where}.{key}" if where else key
+
+    def keys(self, mapping: dict, allowed: set[str], where: str) -> None:
+        unknown = sorted(set(map(str, mapping)) - allowed)
+        if unknown:
+            raise ConfigError(f"{self.path}: unknown key '{self._name(where, unknown[0])}' "
+                              f"(allowed: {', '.join(sorted(allowed))})")
+
+    def get(self, mapping: dict, key: str, kind: Any, where: str = "") -> Any:
+        if key not in mapping:
+            raise ConfigError(f"{self.path}: missing key '{self._name(where, key)}'")
+        value = mapping[key]
+        if not isinstance(value, kind) or isinstance(value, bool):
+            raise ConfigError(f"{self.path}: key '{self._name(where, key)}' has the wrong type "
+                              f"({type(value).__name__})")
+        return value
+
+    def number(self, mapping: dict, key: str, where: str, positive: bool = False,
+               nonnegative: bool = False) -> float:
+        value = float(self.get(mapping, key, (int, float), where))
+        name = self._name(where, key)
+        if not np.isfinite(value):
+            raise ConfigError(f"{self.path}: key '{name}' must be finite")
+        if positive and value <= 0:
+            raise ConfigError(f"{self.path}: key '{name}' must be positive, not {value}")
+        if nonnegative and value < 0:
+            raise ConfigError(f"{self.path}: key '{name}' must not be negative, not {value}")
+        return value
+
+    def vector(self, mapping: dict, key: str, where: str, size: int) -> np.ndarray:
+        value = self.get(mapping, key, list, where)
+        name = self._name(where, key)
+        try:
+            array = np.array(value, dtype=float)
+        except (TypeError, ValueError):
+            raise ConfigError(f"{self.path}: key '{name}' must be a list of {size} numbers") from None
+        if array.shape != (size,) or not np.all(np.isfinite(array)):
+            raise ConfigError(f"{self.path}: key '{name}' must be a list of {size} finite numbers")
+        array.setflags(write=False)
+        return array
+
+
+def rpy_to_matrix(rpy: np.ndarray) -> np.ndarray:
+    """Rotation Rz(yaw)·Ry(pitch)·Rx(roll), the URDF convention."""
+    r, p, y = rpy
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+    m = rz @ ry @ rx
+    m[np.abs(m) < 1e-15] = 0.0
+    return m
