@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from urident.errors import LogFormatError
@@ -136,7 +136,8 @@ def assert_valid(rec: Recording) -> None:
     mutations=st.lists(mutation(), min_size=0, max_size=4),
     side_mut=sidecar_mutation(),
     drop_bad=st.booleans(),
-    rows=st.one_of(st.none(), st.tuples(st.integers(-1, 15), st.integers(-1, 15))),
+    rows=st.one_of(st.none(), st.none(), st.tuples(st.integers(1, 6), st.integers(6, 12)),
+                   st.tuples(st.integers(-1, 15), st.integers(-1, 15))),
 )
 def test_malformed_logs_load_or_raise_logformaterror(kind, mutations, side_mut, drop_bad, rows):
     csv, sidecar = base_rows(kind)
@@ -155,8 +156,10 @@ def test_malformed_logs_load_or_raise_logformaterror(kind, mutations, side_mut, 
             rec = load_log(path, **kwargs)
         except LogFormatError as exc:
             assert "\n" not in str(exc) and str(exc)
+            event(f"rejected: {str(exc).split(': ', 1)[-1].split(' ')[0]}")
             return
         assert_valid(rec)
+        event(f"loaded ({'some dropped' if rec.metadata['dropped']['count'] else 'none dropped'})")
         if not mutations and side_mut[0] == "keep" and rows is None:
             assert len(rec) == N_ROWS
 

@@ -264,9 +264,9 @@ CASES = [
     ("current", lambda r: corrupt(r, 8, 18, "250"), r":8: column current_5 .*±100 A"),
     ("empty cell", lambda r: corrupt(r, 9, 2, ""), r":9: column q_1 \(index 2\): not a number: ''"),
     ("columns", lambda r: r[:3] + [r[3][:-1]] + r[4:], r":4: 18 columns, expected 19"),
-    ("time back", lambda r: corrupt(r, 10, 0, "5.05"), r":10: column t \(index 0\): time 5.05 goes back"),
+    ("time back", lambda r: corrupt(r, 10, 0, "5.05"), r":10: column t \(index 0\): time 5.05 goes"),
     ("time repeat", lambda r: corrupt(r, 10, 0, "5.080"), r":10: column t .*repeats line 9"),
-    ("jump", lambda r: corrupt(r, 12, 4, "2.5"), r":12: column q_3 \(index 4\): joint position jumps"),
+    ("jump", lambda r: corrupt(r, 12, 4, "2.5"), r":12: column q_3 \(index 4\): joint position"),
 ]
 
 

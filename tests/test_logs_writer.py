@@ -130,6 +130,20 @@ def test_exception_marks_aborted_and_keeps_samples(tmp_path):
     assert rec.metadata["abort_reason"] == "RuntimeError: protective stop at joint 2"
 
 
+def test_completed_log_cut_afterwards_is_detected(tmp_path):
+    path = tmp_path / "cut.csv"
+    with LogWriter(path, fields=LOG_FIELDS[:4], metadata={"robot": "ur5e"}) as log:
+        for k in range(10):
+            log.append([k * 0.002] + [0.0] * 18)
+    lines = path.read_text().splitlines(keepends=True)
+    path.write_text("".join(lines[:-3]))
+    with pytest.raises(LogFormatError, match=r"cut\.csv: 7 data rows, but cut\.yaml says "
+                       "n_samples: 10"):
+        load_log(path)
+    rec = load_log(path, drop_bad=True)
+    assert len(rec) == 7 and "n_samples: 10" in rec.metadata["dropped"]["sample_count_mismatch"]
+
+
 def test_close_with_status_and_extra(tmp_path):
     path = tmp_path / "c.csv"
     log = LogWriter(path, fields=LOG_FIELDS[:4], metadata={"robot": "ur5"})

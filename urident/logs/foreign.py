@@ -101,7 +101,7 @@ def parse_column_map(spec: "str | ColumnMap | Mapping[str, object]") -> ColumnMa
         cmap = parse_column_map(PRESETS[text][0])
         return ColumnMap(dict(cmap.columns), cmap.ncols, text)
     if not text:
-        raise ColumnMapError("column map is empty (expected e.g. 't=0,q=1:7,qd=7:13,current=13:19')")
+        raise ColumnMapError("column map is empty (e.g. 't=0,q=1:7,qd=7:13,current=13:19')")
     items = [item.strip() for item in text.split(",")]
     if any(not item for item in items):
         raise ColumnMapError(f"column map {spec!r}: empty item (two commas in a row?)")

@@ -113,6 +113,7 @@ class _Loader:
         self.rows = None if rows is None else _check_range(rows, f"{self.path}: rows")
         self.report = DropReport()
         self.duplicates = 0
+        self.sample_count_mismatch: str | None = None
 
     # ------------------------------------------------------------------ top level
     def load(self) -> Recording:
@@ -129,6 +130,15 @@ class _Loader:
             raise LogFormatError(f"{self.path}: no data rows after the header")
 
         n_data_total = len(data)
+        expected = (sidecar or {}).get("n_samples")
+        if status != STATUS_RUNNING and expected is not None and expected != n_data_total:
+            msg = (
+                f"{self.path}: {n_data_total} data rows, but {sidecar_path(self.path).name} says "
+                f"n_samples: {expected} (file cut or edited after the run?)"
+            )
+            if not self.drop_bad:
+                raise LogFormatError(msg + "; " + _DROP_HINT)
+            self.sample_count_mismatch = msg
         # a last line without newline is cut short when our writer or ur_rtde wrote the file
         if not final_newline:
             ncols_hint = len(header) if header is not None else None
@@ -393,6 +403,8 @@ class _Loader:
         metadata["last_line"] = int(nums[-1])
         metadata["duplicates_removed"] = self.duplicates
         metadata["dropped"] = self.report.as_dict()
+        if self.sample_count_mismatch:
+            metadata["dropped"]["sample_count_mismatch"] = self.sample_count_mismatch
 
         rate = (sidecar or {}).get("rate_hz")
         if rate is None and arrays["t"].shape[0] > 1:
@@ -420,9 +432,12 @@ def _reasons_text(reasons: Mapping[str, int]) -> str:
 def describe_dropped(recording: Recording) -> str | None:
     """One line for the CLI: how many rows were dropped and why, or None when none were."""
     dropped = recording.metadata.get("dropped") or {}
-    if not dropped.get("count"):
-        return None
-    return (
-        f"{recording.source}: dropped {dropped['count']} bad row(s): "
-        f"{_reasons_text(dropped['reasons'])}; first: {dropped['first']}"
-    )
+    parts = []
+    if dropped.get("count"):
+        parts.append(
+            f"{recording.source}: dropped {dropped['count']} bad row(s): "
+            f"{_reasons_text(dropped['reasons'])}; first: {dropped['first']}"
+        )
+    if dropped.get("sample_count_mismatch"):
+        parts.append(dropped["sample_count_mismatch"])
+    return "; ".join(parts) or None

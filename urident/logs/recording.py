@@ -55,8 +55,6 @@ class Recording:
     robot_mode: np.ndarray | None = None
     safety_status_bits: np.ndarray | None = None
     runtime_state: np.ndarray | None = None
-    #: columns the loader did not map (header name -> (N,) or (N, 6) array)
-    extra: Mapping[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         t = np.array(self.t, dtype=np.float64).reshape(-1)
@@ -78,13 +76,6 @@ class Recording:
             if arr.shape != (n,):
                 raise ValueError(f"Recording.{name} must have shape ({n},), got {arr.shape}")
             object.__setattr__(self, name, _freeze(arr))
-        extra = {}
-        for key, value in dict(self.extra).items():
-            arr = np.array(value)
-            if arr.shape[:1] != (n,):
-                raise ValueError(f"Recording.extra[{key!r}] must have {n} rows, got {arr.shape}")
-            extra[key] = _freeze(arr)
-        object.__setattr__(self, "extra", extra)
         if self.source is not None:
             object.__setattr__(self, "source", Path(self.source))
         object.__setattr__(self, "metadata", dict(self.metadata))
@@ -103,7 +94,7 @@ class Recording:
 
     @property
     def status(self) -> str:
-        """Sidecar status: completed, aborted, running (writer crashed or still writing), unknown."""
+        """Sidecar status: completed, aborted, running (writer killed or still writing), unknown."""
         return str(self.metadata.get("status") or STATUS_UNKNOWN)
 
     @property
@@ -118,7 +109,6 @@ class Recording:
             value = getattr(self, name)
             if value is not None:
                 changes[name] = value[index]
-        changes["extra"] = {k: v[index] for k, v in self.extra.items()}
         return dataclasses.replace(self, **changes)
 
 

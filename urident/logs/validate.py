@@ -174,7 +174,9 @@ def check_values(
                 f"value {v:.6g} outside the sane range ±{bounds[c]:.6g}{unit}",
             )
         else:
-            issue = Issue(int(line_numbers[k]), names[c], "non-integer", f"{v!r} is not an integer")
+            issue = Issue(
+                int(line_numbers[k]), names[c], "non-integer", f"{float(v)!r} is not an integer"
+            )
         issues.append(issue)
     return ~bad_rows, issues
 
@@ -214,7 +216,8 @@ def check_time(
                     int(line_numbers[k]),
                     time_name,
                     "time not increasing",
-                    f"time {float(t[k])!r} goes back from {float(t[last])!r} (line {line_numbers[last]})",
+                    f"time {float(t[k])!r} goes back from {float(t[last])!r} "
+                    f"(line {line_numbers[last]})",
                 )
             )
     return keep, dup, issues

@@ -16,7 +16,17 @@ from urident.model.kinematics import AXIS_INDEX, joint_rotations
 from urident.model.parameters import COULOMB_OFFSET, ROTOR_OFFSET, VISCOUS_OFFSET
 from urident.model.robot import N_PARAMS, RobotSpec
 
+try:  # compiled kernel (setup.py builds it when a C compiler is available)
+    from urident.model import _regressor_kernel
+except ImportError:  # pragma: no cover - exercised only where the build was skipped
+    _regressor_kernel = None
+
 DEFAULT_FRICTION_EPS = 0.01  # [rad/s] slope of tanh(q̇/ε) ≈ sign(q̇)
+BACKENDS = ("auto", "c", "numpy")
+
+
+def kernel_available() -> bool:
+    return _regressor_kernel is not None
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -63,27 +73,51 @@ def _body_wrench_regressor(w: np.ndarray, wd: np.ndarray, a: np.ndarray) -> np.n
 
 
 def regressor(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
-              friction_eps: float = DEFAULT_FRICTION_EPS) -> np.ndarray:
+              friction_eps: float = DEFAULT_FRICTION_EPS, backend: str = "auto") -> np.ndarray:
     """Stacked regressor (6N, 78) for (N, 6) joint positions, velocities and accelerations;
     row ``6k + j`` is joint j at sample k, so ``regressor(...) @ p == tau.reshape(-1)``."""
-    return regressor_blocks(spec, q, qd, qdd, friction_eps).reshape(-1, N_PARAMS)
+    return regressor_blocks(spec, q, qd, qdd, friction_eps, backend).reshape(-1, N_PARAMS)
 
 
 def regressor_blocks(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
-                     friction_eps: float = DEFAULT_FRICTION_EPS,
+                     friction_eps: float = DEFAULT_FRICTION_EPS, backend: str = "auto",
                      chunk: int = 4096) -> np.ndarray:
-    """The same regressor as an (N, 6, 78) array, computed ``chunk`` samples at a time (keeps the
-    intermediates in cache)."""
+    """The same regressor as an (N, 6, 78) array.
+
+    ``backend``: ``"c"`` the compiled kernel, ``"numpy"`` the vectorised implementation (computed
+    ``chunk`` samples at a time to keep intermediates in cache), ``"auto"`` the kernel when built.
+    """
     q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
     if not (q.shape == qd.shape == qdd.shape) or q.ndim != 2 or q.shape[1] != 6:
         raise ValueError(f"q, qd, qdd must be (N, 6) arrays, got {q.shape}, {qd.shape}, {qdd.shape}")
     if not friction_eps > 0:
         raise ValueError(f"friction_eps must be positive, got {friction_eps}")
+    if backend not in BACKENDS:
+        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+    if backend == "c" and _regressor_kernel is None:
+        raise RuntimeError("the compiled regressor kernel is not built (reinstall with a C compiler)")
+    if backend != "numpy" and _regressor_kernel is not None:
+        out = np.empty((q.shape[0], 6, N_PARAMS))  # the kernel writes every entry
+        geometry, axes = _kernel_geometry(spec)
+        _regressor_kernel.fill(out, np.ascontiguousarray(q), np.ascontiguousarray(qd),
+                               np.ascontiguousarray(qdd), geometry, axes, float(friction_eps))
+        return out
     out = np.zeros((q.shape[0], 6, N_PARAMS))
     for start in range(0, q.shape[0], chunk):
         stop = start + chunk
         _fill(spec, q[start:stop], qd[start:stop], qdd[start:stop], friction_eps, out[start:stop])
     return out
+
+
+def _kernel_geometry(spec: RobotSpec) -> tuple[np.ndarray, bytes]:
+    """The kernel's packed robot description, cached on the spec."""
+    cached = spec.arrays.get("_kernel_geometry")
+    if cached is None:
+        packed = np.concatenate([np.r_[j.xyz, j.rotation.reshape(-1)] for j in spec.joints]
+                                + [spec.gravity]).astype(float)
+        axes = bytes(AXIS_INDEX[j.axis] for j in spec.joints)
+        cached = spec.arrays["_kernel_geometry"] = (packed, axes)
+    return cached
 
 
 def _fill(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, friction_eps: float,
