@@ -9,6 +9,7 @@ from urident.errors import ConfigError, UnknownRobotError
 from urident.model import joint_torques, load_robot, regressor
 from urident.model.base import base_parameters
 from urident.model.kinematics import frame_poses
+from urident.model.regressor import kernel_available
 from urident.model.parameters import body_params
 from urident.model.pinocchio_model import TorqueModel, build_collision_model, build_model
 
@@ -48,18 +49,33 @@ def test_frames_reproduce_ur_dh_kinematics(name, rng):
         np.testing.assert_allclose(base_to_controller @ pos[0, 6], tool_dh, atol=1e-12)
 
 
+BACKENDS = ["numpy", "c"] if kernel_available() else ["numpy"]
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("name", ROBOTS)
-def test_regressor_equals_pinocchio_plus_rotor_and_friction(name, rng):
+def test_regressor_equals_pinocchio_plus_rotor_and_friction(name, backend, rng):
     spec = load_robot(name)
     for trial in range(3):
         p = random_physical_params(rng, spec)
         eps = rng.uniform(0.005, 0.1)
         q, qd, qdd = rng.uniform(-3, 3, (3, 40, 6))
-        tau = joint_torques(spec, p, q, qd, qdd, friction_eps=eps)
+        tau = (regressor(spec, q, qd, qdd, friction_eps=eps, backend=backend) @ p).reshape(-1, 6)
         model = TorqueModel(spec, p, friction_eps=eps)
         expected = model.torques(q, qd, qdd)
         rel = np.abs(tau - expected).max() / np.abs(expected).max()
         assert rel < 1e-9
+
+
+def test_compiled_kernel_is_built():
+    # CI installs with a compiler: the fast path must be there (the numpy path is the fallback).
+    assert kernel_available()
+
+
+def test_regressor_rejects_bad_shapes():
+    spec = load_robot("ur5")
+    with pytest.raises(ValueError, match="must be"):
+        regressor(spec, np.zeros((3, 5)), np.zeros((3, 5)), np.zeros((3, 5)))
 
 
 def test_regressor_layout_is_sample_major(rng):
