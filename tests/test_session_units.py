@@ -1,0 +1,117 @@
+"""Pure parts of the session layer: monitors, pre-motion checks, configuration."""
+
+import numpy as np
+import pytest
+
+from urident.errors import ConfigError, SafetyError
+from urident.model import load_robot
+from urident.session.config import MonitorConfig, load_experiment_config
+from urident.session.monitors import RunMonitor, safety_problem
+from urident.session.preflight import check_controller, check_robot_state, plan_approach
+from urident.session.rtde_io import parse_polyscope_version, rate_for_version
+
+Q = np.zeros(6)
+
+
+def monitor(**kw):
+    return RunMonitor(MonitorConfig(**kw), period_s=0.002)
+
+
+def test_monitor_passes_a_normal_sample():
+    assert monitor().check(Q, Q + 0.01, 1.0, 0b1, 2, 0.0005) is None
+
+
+@pytest.mark.parametrize("bit, word", [(2, "protective stop"), (7, "emergency stop"), (4, "safeguard")])
+def test_monitor_stops_on_safety_bits(bit, word):
+    reason = monitor().check(Q, Q, 1.0, 1 << bit, 2, None)
+    assert word in reason
+
+
+def test_monitor_stops_when_program_stops():
+    assert "runtime_state=1" in monitor().check(Q, Q, 1.0, 0, 1, None)
+
+
+def test_monitor_tracking_error_names_the_joint():
+    q = Q.copy()
+    q[3] = 0.3
+    reason = monitor(max_tracking_error_rad=0.25).check(Q, q, 1.0, 0, 2, None)
+    assert "joint 4" in reason and "0.300" in reason
+
+
+def test_monitor_stale_timestamps():
+    m = monitor(max_stale_periods=5)
+    assert m.check(Q, Q, 1.0, 0, 2, None) is None
+    reasons = [m.check(Q, Q, 1.0, 0, 2, None) for _ in range(5)]
+    assert reasons[:4] == [None] * 4 and "stale data" in reasons[4]
+
+
+def test_monitor_late_cycles_consecutive_and_fraction():
+    m = monitor(max_consecutive_late=3, max_late_fraction=1.0)
+    reasons = [m.check(Q, Q, 0.002 * k, 0, 2, 0.01) for k in range(3)]
+    assert reasons[:2] == [None, None] and "3 late control cycles in a row" in reasons[2]
+    m = monitor(max_consecutive_late=10**6, max_late_fraction=0.05)
+    out = None
+    for k in range(600):  # every 10th cycle late: 10 % > 5 % budget once warmed up (1 s)
+        out = m.check(Q, Q, 0.002 * k, 0, 2, 0.01 if k % 10 == 0 else 0.0001)
+        if out:
+            break
+    assert out is not None and "budget 5%" in out and k >= 499
+
+
+def test_safety_problem_none_for_normal():
+    assert safety_problem(0b1) is None
+
+
+def test_controller_generation_rate_and_model():
+    ur5, ur5e = load_robot("ur5"), load_robot("ur5e")
+    check_controller(ur5, (3, 15, 8), 125.0, "UR5")
+    check_controller(ur5e, (5, 11, 0), 500.0, "UR5")  # e-Series dashboards say the family name
+    with pytest.raises(SafetyError, match="e-Series controller, but robot 'ur5' is a CB3"):
+        check_controller(ur5, (5, 11, 0), 500.0, None)
+    with pytest.raises(SafetyError, match="CB3 controller, but robot 'ur5e'"):
+        check_controller(ur5e, (3, 15, 8), 125.0, None)
+    with pytest.raises(SafetyError, match="reports robot model 'UR10'"):
+        check_controller(ur5e, (5, 11, 0), 500.0, "UR10")
+    assert rate_for_version(3) == 125.0 and rate_for_version(5) == 500.0
+    assert parse_polyscope_version("URSoftware 5.11.1.108318 (Mar 22 2021)")[:3] == (5, 11, 1)
+    with pytest.raises(SafetyError):
+        parse_polyscope_version("garbage")
+
+
+def test_robot_state_checks():
+    check_robot_state(7, 1, 1)
+    with pytest.raises(SafetyError, match="power off"):
+        check_robot_state(3, 1, 1)
+    with pytest.raises(SafetyError, match="protective stop"):
+        check_robot_state(7, 3, 1 << 2)
+
+
+def test_approach_distance_and_clearance():
+    spec = load_robot("ur5e")
+    start = np.array([0.0, -1.57, 0.0, -1.57, 0.0, 0.0])
+    plan = plan_approach(spec, start + 0.1, start, 2.0)
+    assert plan.max_joint_distance_rad == pytest.approx(0.1)
+    with pytest.raises(SafetyError, match="starts 2.50 rad away on joint 3"):
+        plan_approach(spec, start + np.array([0, 0, 2.5, 0, 0, 0]), start, 2.0)
+    with pytest.raises(SafetyError, match="passes 0.010 m from a collision"):
+        plan_approach(spec, start + 0.1, start, 2.0, clearance_m=0.05,
+                      distance_fn=lambda q: np.full(len(q), 0.01))
+
+
+def test_experiment_config_errors(tmp_path):
+    assert load_experiment_config(None).servo.gain == 300.0
+    shipped = load_experiment_config("experiments/session.yaml")
+    assert shipped.monitors.max_stale_periods == 25
+    bad = tmp_path / "c.yaml"
+    bad.write_text("servo:\n  gian: 300\n")
+    with pytest.raises(ConfigError, match=r"c.yaml: unknown key 'servo.gian'"):
+        load_experiment_config(bad)
+    bad.write_text("servo:\n  gain: 5000\n")
+    with pytest.raises(ConfigError, match=r"'servo.gain' must be in \[100, 2000\]"):
+        load_experiment_config(bad)
+    bad.write_text("servo: [1, 2\n")
+    with pytest.raises(ConfigError, match=r"c.yaml:\d+: malformed YAML"):
+        load_experiment_config(bad)
+    bad.write_text("monitors:\n  max_stale_periods: 2.5\n")
+    with pytest.raises(ConfigError, match="whole number"):
+        load_experiment_config(bad)

@@ -1,0 +1,64 @@
+"""``urident run``: execute a trajectory on a robot, URSim or urident's simulated controller."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "run", help="run a checked trajectory on a robot over RTDE and record a log",
+        description="Check the controller, the robot state, the trajectory (at the controller's "
+                    "rate) and the approach; then moveJ to the start, run the trajectory with "
+                    "servoJ under monitors, and record every controller sample. servoStop and "
+                    "stopScript always end the session.")
+    p.add_argument("--robot", required=True, help="robot name (ur5, ur5e, ur10e) or robot file")
+    p.add_argument("--host", required=True, help="controller address (robot, URSim or sim-controller)")
+    p.add_argument("--trajectory", required=True, type=Path, help="trajectory file (urident excite)")
+    p.add_argument("--out", type=Path, help="log to write (LOG.csv + LOG.yaml); required unless --check-only")
+    p.add_argument("--config", type=Path, help="experiment configuration YAML (servo, approach, monitors)")
+    p.add_argument("--repeat", type=int, default=1, help="run the trajectory N times back to back")
+    p.add_argument("--yes", action="store_true", help="do not ask before moving")
+    p.add_argument("--check-only", action="store_true", help="do every check, move nothing")
+    p.add_argument("--rerun", action="store_true", help="stream to a Rerun viewer while running")
+    p.add_argument("--save-rrd", type=Path, help="stream to this .rrd file while running")
+    p.set_defaults(func=run)
+
+
+def _confirm(question: str) -> bool:
+    if not sys.stdin.isatty():
+        return False
+    answer = input(f"{question} [y/N] ").strip().lower()
+    return answer in ("y", "yes")
+
+
+def run(args: argparse.Namespace) -> int:
+    from urident.errors import ConfigError
+    from urident.session import RunRequest, load_experiment_config, run_session
+
+    if args.out is None and not args.check_only:
+        raise ConfigError("--out LOG is required (or pass --check-only)")
+    out = args.out
+    if out is not None and out.suffix != ".csv":
+        out = out.with_suffix(".csv")
+    request = RunRequest(robot=args.robot, host=args.host, trajectory=args.trajectory,
+                         out=out or Path("unused.csv"), config=load_experiment_config(args.config),
+                         repeat=args.repeat, check_only=args.check_only, assume_yes=args.yes)
+    live = None
+    if (args.rerun or args.save_rrd) and not args.check_only:
+        live = _live_streamer(args)
+    result = run_session(request, confirm=_confirm, live=live)
+    if result.status == "checked":
+        print("check only: every check passed; nothing was moved")
+    return 0
+
+
+def _live_streamer(args: argparse.Namespace):
+    try:
+        from urident.viz import live
+    except ImportError:
+        print("urident: warning: live streaming is not available", file=sys.stderr)
+        return None
+    return live.make_session_streamer(robot=args.robot, spawn=args.rerun, save=args.save_rrd)

@@ -1,0 +1,97 @@
+"""Checks made before anything moves: the controller is the robot we think it is, at the rate we
+think it runs, in a normal state, and the trajectory and the approach to its start are safe.
+
+Pure functions of plain values: the runner gathers the values over RTDE and the dashboard.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from urident.errors import SafetyError
+from urident.model import RobotSpec
+from urident.session.monitors import ROBOT_MODE_RUNNING, safety_problem
+
+SAFETY_MODE_NORMAL = 1
+ROBOT_MODE_NAMES = {-1: "no controller", 0: "disconnected", 1: "confirm safety", 2: "booting",
+                    3: "power off", 4: "power on", 5: "idle", 6: "backdrive", 7: "running",
+                    8: "updating firmware"}
+
+
+@dataclass(frozen=True)
+class ApproachPlan:
+    q_now: np.ndarray
+    q_start: np.ndarray
+    max_joint_distance_rad: float
+    joint: int                      # joint (0-based) with the largest distance
+    min_clearance_m: float | None   # smallest collision distance along the joint-space path
+
+
+def check_controller(spec: RobotSpec, version: tuple[int, ...], rate_hz: float,
+                     robot_model: str | None) -> None:
+    """The controller's generation, rate and model must match the robot file."""
+    version_text = ".".join(map(str, version))
+    is_cb3 = version[0] <= 3
+    if spec.generation == "cb3" and not is_cb3:
+        raise SafetyError(f"controller {version_text} is an e-Series controller, but robot "
+                          f"'{spec.name}' is a CB3 robot: check --robot")
+    if spec.generation == "e-series" and is_cb3:
+        raise SafetyError(f"controller {version_text} is a CB3 controller, but robot "
+                          f"'{spec.name}' is an e-Series robot: check --robot")
+    if abs(rate_hz - spec.controller_rate_hz) > 1e-6:
+        raise SafetyError(f"controller {version_text} runs RTDE at {rate_hz:g} Hz, the robot file "
+                          f"of '{spec.name}' says {spec.controller_rate_hz:g} Hz")
+    if robot_model:
+        reported = robot_model.strip().lower().replace(" ", "")
+        expected = spec.name.lower()
+        # e-Series dashboards report the family name ("UR5") for a UR5e.
+        family = expected[:-1] if spec.generation == "e-series" and expected.endswith("e") else expected
+        if reported not in (expected, family):
+            raise SafetyError(f"the controller reports robot model '{robot_model.strip()}', "
+                              f"but --robot is '{spec.name}'")
+
+
+def check_robot_state(robot_mode: int, safety_mode: int, safety_bits: int) -> None:
+    if robot_mode != ROBOT_MODE_RUNNING:
+        name = ROBOT_MODE_NAMES.get(robot_mode, str(robot_mode))
+        raise SafetyError(f"robot mode is '{name}' ({robot_mode}), not 'running': power on and "
+                          f"release the brakes first")
+    problem = safety_problem(safety_bits)
+    if problem:
+        raise SafetyError(f"robot is not ready: {problem}")
+    if safety_mode != SAFETY_MODE_NORMAL:
+        raise SafetyError(f"safety mode is {safety_mode}, not normal (1)")
+
+
+def plan_approach(spec: RobotSpec, q_now: np.ndarray, q_start: np.ndarray, max_distance_rad: float,
+                  clearance_m: float | None = None, distance_fn=None) -> ApproachPlan:
+    """Check the moveJ from the current pose to the trajectory start: joint distance within
+    ``max_distance_rad`` and, when ``distance_fn`` (q (N, 6) → min distance (N,)) is given,
+    no collision along the straight joint-space path."""
+    q_now = np.asarray(q_now, dtype=float)
+    q_start = np.asarray(q_start, dtype=float)
+    if q_now.shape != (6,) or not np.all(np.isfinite(q_now)):
+        raise SafetyError(f"the controller reports an invalid joint position {q_now}")
+    for j in range(6):
+        if not spec.q_min[j] <= q_now[j] <= spec.q_max[j]:
+            raise SafetyError(f"joint {j + 1} is at {q_now[j]:.3f} rad, outside the robot file's "
+                              f"limits [{spec.q_min[j]:.3f}, {spec.q_max[j]:.3f}]")
+    distance = np.abs(q_start - q_now)
+    joint = int(np.argmax(distance))
+    if distance[joint] > max_distance_rad:
+        raise SafetyError(f"the trajectory starts {distance[joint]:.2f} rad away on joint {joint + 1} "
+                          f"(limit approach.max_distance_rad = {max_distance_rad}): move the robot "
+                          f"closer to {np.round(q_start, 3).tolist()} first")
+    clearance = None
+    if distance_fn is not None:
+        steps = max(2, int(np.ceil(distance[joint] / 0.01)) + 1)
+        path = q_now + np.linspace(0.0, 1.0, steps)[:, None] * (q_start - q_now)
+        d = np.asarray(distance_fn(path))
+        k = int(np.argmin(d))
+        clearance = float(d[k])
+        if clearance_m is not None and clearance < clearance_m:
+            raise SafetyError(f"the approach to the start passes {clearance:.3f} m from a collision "
+                              f"(clearance {clearance_m} m) at {np.round(path[k], 3).tolist()}")
+    return ApproachPlan(q_now, q_start, float(distance[joint]), joint, clearance)

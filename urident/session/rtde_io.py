@@ -1,0 +1,171 @@
+"""The robot over RTDE: the one module of urident that imports ur_rtde.
+
+:class:`RobotLink` wraps ur_rtde's receive, control and dashboard clients behind the few calls a
+session needs, turns their failures into :class:`urident.errors.ConnectionLost`, and reads one
+log sample per control cycle.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from urident.errors import ConnectionLost, SafetyError
+
+# Output fields the session records (urident.logs.LOG_FIELDS), in ur_rtde's names.
+RECEIVE_VARIABLES = [
+    "timestamp", "actual_q", "actual_qd", "actual_current", "target_q", "target_qd", "target_qdd",
+    "target_current", "target_moment", "joint_temperatures", "robot_mode", "safety_mode",
+    "safety_status_bits", "runtime_state",
+]
+
+
+@dataclass(frozen=True)
+class ControllerInfo:
+    version: tuple[int, ...]      # PolyScope / controller software version
+    version_text: str
+    rate_hz: float                # RTDE rate ur_rtde uses for this controller
+    robot_model: str | None       # e.g. "UR5" (dashboard 'get robot model'), None if unsupported
+    serial_number: str | None
+
+
+def rate_for_version(major: int) -> float:
+    """ur_rtde's rate rule: CB3 (major ≤ 3) 125 Hz, e-Series 500 Hz."""
+    return 125.0 if major <= 3 else 500.0
+
+
+def parse_polyscope_version(text: str) -> tuple[int, ...]:
+    match = re.search(r"(\d+)\.(\d+)\.(\d+)(?:\.(\d+))?", text or "")
+    if not match:
+        raise SafetyError(f"cannot read the controller version from the dashboard reply {text!r}")
+    return tuple(int(g) for g in match.groups() if g is not None)
+
+
+class RobotLink:
+    """Connections to one controller. Construct, then :meth:`connect_receive`, :meth:`info`,
+    and only after every pre-motion check :meth:`connect_control` (which starts the control
+    script on the robot). :meth:`close` always stops servoing and the script first."""
+
+    def __init__(self, host: str):
+        self.host = host
+        self.receive = None
+        self.control = None
+        self.dashboard = None
+
+    # ------------------------------------------------------------------ connection
+    def connect_receive(self) -> None:
+        import dashboard_client
+        import rtde_receive
+
+        try:
+            self.dashboard = dashboard_client.DashboardClient(self.host)
+            self.dashboard.connect()
+        except RuntimeError as exc:
+            raise ConnectionLost(f"cannot reach the dashboard server of {self.host}:29999 ({exc})") from None
+        try:
+            self.receive = rtde_receive.RTDEReceiveInterface(self.host, -1.0, RECEIVE_VARIABLES)
+        except RuntimeError as exc:
+            raise ConnectionLost(f"cannot open RTDE to {self.host}:30004 ({exc})") from None
+
+    def info(self) -> ControllerInfo:
+        text = self._dashboard_call("polyscopeVersion")
+        version = parse_polyscope_version(text)
+        model = self._dashboard_call("getRobotModel", optional=True)
+        serial = self._dashboard_call("getSerialNumber", optional=True)
+        return ControllerInfo(version, text.strip(), rate_for_version(version[0]),
+                              model.strip() if model else None, serial.strip() if serial else None)
+
+    def in_remote_control(self) -> bool:
+        return bool(self._dashboard_call("isInRemoteControl"))
+
+    def connect_control(self, rate_hz: float) -> None:
+        import rtde_control
+
+        try:
+            self.control = rtde_control.RTDEControlInterface(self.host, rate_hz)
+        except RuntimeError as exc:
+            raise ConnectionLost(f"cannot start the control script on {self.host} ({exc})") from None
+
+    def _dashboard_call(self, name: str, optional: bool = False):
+        try:
+            return getattr(self.dashboard, name)()
+        except RuntimeError as exc:
+            if optional:
+                return None
+            raise ConnectionLost(f"dashboard '{name}' failed on {self.host} ({exc})") from None
+
+    # ------------------------------------------------------------------ state
+    def state(self) -> dict[str, object]:
+        """One sample of every recorded field (ur_rtde names), from the latest RTDE package."""
+        r = self.receive
+        if not r.isConnected():
+            raise ConnectionLost(f"RTDE connection to {self.host} lost")
+        return {
+            "timestamp": r.getTimestamp(),
+            "actual_q": r.getActualQ(),
+            "actual_qd": r.getActualQd(),
+            "actual_current": r.getActualCurrent(),
+            "target_q": r.getTargetQ(),
+            "target_qd": r.getTargetQd(),
+            "target_qdd": r.getTargetQdd(),
+            "target_current": r.getTargetCurrent(),
+            "target_moment": r.getTargetMoment(),
+            "joint_temperatures": r.getJointTemperatures(),
+            "robot_mode": r.getRobotMode(),
+            "safety_status_bits": r.getSafetyStatusBits(),
+            "runtime_state": r.getRuntimeState(),
+        }
+
+    def actual_q(self) -> np.ndarray:
+        return np.asarray(self.receive.getActualQ(), dtype=float)
+
+    def modes(self) -> tuple[int, int, int]:
+        """(robot_mode, safety_mode, safety_status_bits)."""
+        r = self.receive
+        return int(r.getRobotMode()), int(r.getSafetyMode()), int(r.getSafetyStatusBits())
+
+    # ------------------------------------------------------------------ motion
+    def move_joints(self, q: np.ndarray, speed: float, acceleration: float) -> bool:
+        return bool(self.control.moveJ(list(map(float, q)), speed, acceleration))
+
+    def init_period(self):
+        return self.control.initPeriod()
+
+    def wait_period(self, t_start) -> None:
+        self.control.waitPeriod(t_start)
+
+    def servo(self, q: np.ndarray, period_s: float, lookahead_time_s: float, gain: float) -> bool:
+        return bool(self.control.servoJ(q.tolist(), 0.0, 0.0, period_s, lookahead_time_s, gain))
+
+    def control_connected(self) -> bool:
+        return self.control is not None and bool(self.control.isConnected())
+
+    # ------------------------------------------------------------------ shutdown
+    def stop(self) -> list[str]:
+        """servoStop then stopScript, each attempted whatever happened before; returns what failed."""
+        problems = []
+        if self.control is not None:
+            for name in ("servoStop", "stopScript"):
+                try:
+                    getattr(self.control, name)()
+                except Exception as exc:  # noqa: BLE001 - shutdown must try every step
+                    problems.append(f"{name}: {exc}")
+        return problems
+
+    def close(self) -> list[str]:
+        problems = self.stop()
+        for client in (self.control, self.receive):
+            if client is not None:
+                try:
+                    client.disconnect()
+                except Exception as exc:  # noqa: BLE001
+                    problems.append(f"disconnect: {exc}")
+        if self.dashboard is not None:
+            try:
+                self.dashboard.disconnect()
+            except Exception as exc:  # noqa: BLE001
+                problems.append(f"dashboard disconnect: {exc}")
+        self.control = self.receive = self.dashboard = None
+        return problems

@@ -1,0 +1,241 @@
+"""``urident run``: execute a checked trajectory over RTDE and record everything.
+
+Order of a session: load and check the robot file, trajectory and configuration; read the
+controller (version → rate, model, modes, pose); check the trajectory densely at that rate and the
+approach to its start; ask the operator (unless ``--yes``); start the control script; moveJ to the
+start; servoStop; the servoJ loop paced by ``initPeriod``/``waitPeriod`` with the monitors and the
+log; rest at the final point; then — always, in a ``finally`` — servoStop and stopScript.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import time
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from urident import __version__
+from urident.errors import ConfigError, ConnectionLost, SafetyError, SessionAborted
+from urident.model import RobotSpec, load_robot
+from urident.session.config import ExperimentConfig
+from urident.session.monitors import RunMonitor
+from urident.session.preflight import (ApproachPlan, check_controller, check_robot_state,
+                                       plan_approach)
+from urident.session.rtde_io import ControllerInfo, RobotLink
+
+
+@dataclass(frozen=True)
+class RunRequest:
+    robot: str
+    host: str
+    trajectory: Path
+    out: Path
+    config: ExperimentConfig = field(default_factory=ExperimentConfig)
+    repeat: int = 1
+    check_only: bool = False
+    assume_yes: bool = False
+
+
+@dataclass
+class RunResult:
+    status: str                   # "completed", "aborted" or "checked"
+    log_path: Path | None = None
+    n_samples: int = 0
+    abort_reason: str | None = None
+    late_cycles: int = 0
+    info: ControllerInfo | None = None
+    approach: ApproachPlan | None = None
+    period_error_s: dict[str, float] = field(default_factory=dict)
+    max_tracking_error_rad: float = 0.0
+
+
+@dataclass(frozen=True)
+class PlannedMotion:
+    spec: RobotSpec
+    trajectory_file: object
+    t: np.ndarray        # (K,) command times [s]
+    q_cmd: np.ndarray    # (K, 6) servo targets, trajectory repeated, then rest
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def plan_motion(spec: RobotSpec, trajectory_path: Path, rate_hz: float, repeat: int,
+                rest_s: float) -> PlannedMotion:
+    """Load the trajectory, check every constraint at ``rate_hz`` and build the servo targets."""
+    from urident.excitation import check_trajectory, load_trajectory, sample
+
+    traj_file = load_trajectory(trajectory_path)
+    if traj_file.robot != spec.name:
+        raise ConfigError(f"{trajectory_path}: trajectory is for robot '{traj_file.robot}', "
+                          f"not '{spec.name}'")
+    report = check_trajectory(spec, traj_file.trajectory, rate_hz, traj_file.limits)
+    if not report.ok:
+        raise SafetyError(f"{trajectory_path}: {report.violations[0]} (checked at {rate_hz:g} Hz; "
+                          f"run 'urident check-trajectory {trajectory_path}' for the full report)")
+    if repeat < 1:
+        raise ConfigError(f"--repeat must be at least 1, not {repeat}")
+    _, q, _, _ = sample(traj_file.trajectory, rate_hz)
+    period = 1.0 / rate_hz
+    # One period of a rest-to-rest trajectory ends where the next begins: drop the duplicate.
+    parts = [q] + [q[1:]] * (repeat - 1)
+    n_rest = int(round(rest_s * rate_hz))
+    parts.append(np.repeat(q[-1:], n_rest, axis=0))
+    q_cmd = np.concatenate(parts)
+    return PlannedMotion(spec, traj_file, np.arange(len(q_cmd)) * period, q_cmd)
+
+
+def run_session(request: RunRequest, say: Callable[[str], None] = print,
+                confirm: Callable[[str], bool] | None = None,
+                live=None, link: RobotLink | None = None) -> RunResult:
+    """Run one session; raise :class:`SafetyError` before any motion when a check fails and
+    :class:`SessionAborted` (after the robot was stopped and the log closed) when a run stops early."""
+    spec = load_robot(request.robot)
+    config = request.config
+    link = link or RobotLink(request.host)
+    result = RunResult(status="checked")
+    try:
+        link.connect_receive()
+        info = link.info()
+        result.info = info
+        check_controller(spec, info.version, info.rate_hz, info.robot_model)
+        robot_mode, safety_mode, safety_bits = link.modes()
+        check_robot_state(robot_mode, safety_mode, safety_bits)
+        if spec.generation == "e-series" and not link.in_remote_control():
+            raise SafetyError(f"{request.host} is in local control: switch the teach pendant to "
+                              f"remote control")
+        motion = plan_motion(spec, request.trajectory, info.rate_hz, request.repeat, config.rest_s)
+        clearance = getattr(motion.trajectory_file.limits, "clearance_m", None)
+        approach = plan_approach(spec, link.actual_q(), motion.q_cmd[0],
+                                 config.approach.max_distance_rad, clearance,
+                                 _distance_function(spec))
+        result.approach = approach
+        say(f"{spec.description} at {request.host}: controller {info.version_text}, "
+            f"{info.rate_hz:g} Hz; trajectory {request.trajectory} passed every check at "
+            f"{info.rate_hz:g} Hz ({len(motion.q_cmd)} servo periods, {motion.t[-1]:.1f} s)")
+        say(f"approach: {approach.max_joint_distance_rad:.3f} rad on joint {approach.joint + 1} at "
+            f"{config.approach.speed_rad_s} rad/s"
+            + (f", clearance {approach.min_clearance_m:.3f} m" if approach.min_clearance_m is not None else ""))
+        if request.check_only:
+            return result
+        if not request.assume_yes:
+            question = (f"Move the robot at {request.host} to the trajectory start and run "
+                        f"{motion.t[-1]:.1f} s of servoJ?")
+            if confirm is None or not confirm(question):
+                raise SafetyError("not confirmed: nothing was moved (pass --yes to skip the question)")
+        link.connect_control(info.rate_hz)
+        return _execute(request, spec, info, motion, link, result, say, live)
+    finally:
+        problems = link.close()
+        for problem in problems:
+            say(f"warning: while stopping: {problem}")
+
+
+def _distance_function(spec: RobotSpec):
+    try:
+        from urident.excitation import min_distances
+    except ImportError:  # pragma: no cover - the excitation package always provides it
+        return None
+    return lambda q: min_distances(spec, q)
+
+
+def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion: PlannedMotion,
+             link: RobotLink, result: RunResult, say: Callable[[str], None], live) -> RunResult:
+    from urident.logs import LogWriter
+
+    config = request.config
+    period = 1.0 / info.rate_hz
+    metadata = {
+        "robot": spec.name,
+        "controller_version": info.version_text,
+        "rate_hz": info.rate_hz,
+        "trajectory_file": str(request.trajectory),
+        "trajectory_sha256": _sha256(request.trajectory),
+        "gear_ratios": spec.gear_ratios.tolist(),
+        "torque_constants": spec.torque_constants.tolist(),
+        "start_time": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "host": request.host,
+        "repeat": request.repeat,
+        "servo": {"lookahead_time_s": config.servo.lookahead_time_s, "gain": config.servo.gain},
+        "robot_model_reported": info.robot_model,
+    }
+    request.out.parent.mkdir(parents=True, exist_ok=True)
+    writer = LogWriter(request.out, metadata=metadata, overwrite=True)
+    monitor = RunMonitor(config.monitors, period)
+    periods = np.full(len(motion.q_cmd), np.nan)
+    abort_reason: str | None = None
+    n_samples = 0
+    try:
+        say(f"moving to the start at {config.approach.speed_rad_s} rad/s …")
+        if not link.move_joints(motion.q_cmd[0], config.approach.speed_rad_s,
+                                config.approach.acceleration_rad_s2):
+            raise SessionAborted("moveJ to the trajectory start failed (the controller rejected it "
+                                 "or stopped): nothing else was moved")
+        link.control.servoStop()
+        say(f"running {len(motion.q_cmd)} servo periods at {info.rate_hz:g} Hz …")
+        lookahead, gain = config.servo.lookahead_time_s, config.servo.gain
+        work_s = None
+        last_start = None
+        for k, q_cmd in enumerate(motion.q_cmd):
+            t_start = link.init_period()
+            now = time.perf_counter()
+            if last_start is not None:
+                periods[k] = now - last_start
+            last_start = now
+            if not link.servo(q_cmd, period, lookahead, gain):
+                abort_reason = "the controller rejected servoJ (program not running or stopped)"
+                break
+            state = link.state()
+            if writer.append(state):
+                n_samples += 1
+            q = np.asarray(state["actual_q"])
+            abort_reason = monitor.check(q_cmd, q, state["timestamp"], state["safety_status_bits"],
+                                         state["runtime_state"], work_s)
+            if live is not None:
+                live.push(state, q_cmd)
+            if abort_reason:
+                abort_reason = f"at t = {k * period:.3f} s: {abort_reason}"
+                break
+            work_s = time.perf_counter() - now
+            if work_s > period + config.monitors.late_tolerance_s:
+                writer.mark_late_cycle()
+            link.wait_period(t_start)
+    except KeyboardInterrupt:
+        abort_reason = "interrupted by the operator (Ctrl-C)"
+    except ConnectionLost as exc:
+        abort_reason = str(exc)
+    except RuntimeError as exc:  # ur_rtde raises RuntimeError when the link breaks
+        abort_reason = f"connection lost: {exc}"
+    except SessionAborted as exc:
+        abort_reason = str(exc)
+    finally:
+        # Stop first, then close the log: the robot must not wait on the disk.
+        problems = link.stop()
+        valid = periods[np.isfinite(periods)]
+        errors = np.abs(valid - period) if len(valid) else np.zeros(1)
+        result.period_error_s = {"p50": float(np.percentile(errors, 50)),
+                                 "p99": float(np.percentile(errors, 99)), "max": float(errors.max())}
+        extra = {"period_error_s": result.period_error_s,
+                 "max_tracking_error_rad": monitor.max_tracking_error,
+                 "stop_problems": problems}
+        status = "aborted" if abort_reason else "completed"
+        writer.close(status=status, abort_reason=abort_reason, extra=extra)
+        if live is not None:
+            live.close(abort_reason)
+    result.status = status
+    result.log_path = request.out
+    result.n_samples = n_samples
+    result.abort_reason = abort_reason
+    result.late_cycles = monitor.late.late
+    result.max_tracking_error_rad = monitor.max_tracking_error
+    if abort_reason:
+        raise SessionAborted(f"run aborted {abort_reason}; robot stopped; {n_samples} samples "
+                             f"kept in {request.out}")
+    say(f"completed: {n_samples} samples in {request.out} ({monitor.late.late} late cycles, "
+        f"max tracking error {monitor.max_tracking_error:.4f} rad)")
+    return result
