@@ -50,7 +50,8 @@ class Fault:
         if self.kind in FLAG_KINDS:
             return self.kind
         ref = "start+" if self.from_start else ""
-        dur = f":{self.duration_s:g}" if self.kind in DEFAULT_DURATION_S else ""
+        finite = self.duration_s != float("inf")
+        dur = f":{self.duration_s:g}" if self.kind in DEFAULT_DURATION_S and finite else ""
         return f"{self.kind}@{ref}{self.at_s:g}{dur}"
 
 

@@ -2,29 +2,31 @@
 
 UR convention: ``T_i = Rz(q_i) · Tz(d_i) · Tx(a_i) · Rx(alpha_i)``; the TCP pose is
 ``[x, y, z, rx, ry, rz]`` (position [m] and rotation vector [rad]) of the flange plus the TCP
-offset, in the base frame.
+offset, in the base frame. Written with plain floats: it runs every controller cycle.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
-def rotation_vector(r: np.ndarray) -> np.ndarray:
-    """Axis-angle vector of rotation matrix ``r``."""
-    cos_angle = np.clip((np.trace(r) - 1.0) / 2.0, -1.0, 1.0)
-    angle = float(np.arccos(cos_angle))
+def rotation_vector(r) -> np.ndarray:
+    """Axis-angle vector of a 3×3 rotation matrix (nested sequences or array)."""
+    r = np.asarray(r, dtype=float)
+    cos_angle = min(max((r[0, 0] + r[1, 1] + r[2, 2] - 1.0) / 2.0, -1.0), 1.0)
+    angle = math.acos(cos_angle)
     if angle < 1e-9:
         return np.zeros(3)
-    if np.pi - angle < 1e-6:
-        # near pi: axis from the diagonal
+    if math.pi - angle < 1e-6:
         axis = np.sqrt(np.maximum((np.diag(r) + 1.0) / 2.0, 0.0))
         k = int(np.argmax(axis))
         for j in range(3):
             if j != k and r[k, j] + r[j, k] < 0:
                 axis[j] = -axis[j]
         return axis / np.linalg.norm(axis) * angle
-    axis = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]]) / (2.0 * np.sin(angle))
+    axis = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]]) / (2.0 * math.sin(angle))
     return axis * angle
 
 
@@ -37,57 +39,90 @@ def pose_matrix(pose) -> np.ndarray:
     if angle > 1e-12:
         k = v / angle
         kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-        t[:3, :3] = np.eye(3) + np.sin(angle) * kx + (1 - np.cos(angle)) * kx @ kx
+        t[:3, :3] = np.eye(3) + math.sin(angle) * kx + (1 - math.cos(angle)) * kx @ kx
     t[:3, 3] = pose[:3]
     return t
+
+
+def _cross(a, b):
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
 class Kinematics:
     """DH forward kinematics with the geometric Jacobian's linear/angular velocities."""
 
     def __init__(self, d, a, alpha):
-        self.d = np.asarray(d, dtype=float)
-        self.a = np.asarray(a, dtype=float)
-        self.alpha = np.asarray(alpha, dtype=float)
-        self._ca = np.cos(self.alpha)
-        self._sa = np.sin(self.alpha)
+        self.d = [float(x) for x in d]
+        self.a = [float(x) for x in a]
+        self.ca = [math.cos(float(x)) for x in alpha]
+        self.sa = [math.sin(float(x)) for x in alpha]
+        self._offset_key = None
+        self._offset = None
 
     @classmethod
     def from_spec(cls, spec) -> "Kinematics":
         return cls(spec.dh["d"], spec.dh["a"], spec.dh["alpha"])
 
-    def frames(self, q) -> list[np.ndarray]:
-        """Base-frame transforms of frames 0 (base) … 6 (flange)."""
-        out = [np.eye(4)]
-        t = np.eye(4)
+    def _frames(self, q):
+        """Rotation (row-major 3×3 tuples) and origin of frames 0 … 6 in the base frame."""
+        r = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+        o = (0.0, 0.0, 0.0)
+        rotations, origins = [r], [o]
         for i in range(6):
-            ct, st = np.cos(q[i]), np.sin(q[i])
-            ca, sa = self._ca[i], self._sa[i]
-            step = np.array([[ct, -st * ca, st * sa, self.a[i] * ct],
-                             [st, ct * ca, -ct * sa, self.a[i] * st],
-                             [0.0, sa, ca, self.d[i]],
-                             [0.0, 0.0, 0.0, 1.0]])
-            t = t @ step
-            out.append(t)
-        return out
+            ct, st = math.cos(q[i]), math.sin(q[i])
+            ca, sa, a, d = self.ca[i], self.sa[i], self.a[i], self.d[i]
+            # local transform columns: x=(ct, st, 0), y=(-st ca, ct ca, sa), z=(st sa, -ct sa, ca)
+            lx = (ct, st, 0.0)
+            ly = (-st * ca, ct * ca, sa)
+            lz = (st * sa, -ct * sa, ca)
+            lp = (a * ct, a * st, d)
+            rows = []
+            for row in r:
+                rows.append((row[0] * lx[0] + row[1] * lx[1] + row[2] * lx[2],
+                             row[0] * ly[0] + row[1] * ly[1] + row[2] * ly[2],
+                             row[0] * lz[0] + row[1] * lz[1] + row[2] * lz[2]))
+            o = tuple(o[k] + r[k][0] * lp[0] + r[k][1] * lp[1] + r[k][2] * lp[2] for k in range(3))
+            r = tuple(rows)
+            rotations.append(r)
+            origins.append(o)
+        return rotations, origins
 
-    def tcp(self, q, qd, tcp_offset=None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def _offset_matrix(self, tcp_offset):
+        key = tuple(float(x) for x in tcp_offset)
+        if key != self._offset_key:
+            self._offset_key = key
+            self._offset = None if not any(key) else pose_matrix(key)
+        return self._offset
+
+    def tcp(self, q, qd, tcp_offset=None):
         """(TCP pose (6,), TCP speed (6,) [v, ω], elbow position (3,), elbow velocity (3,),
-        TCP rotation matrix (3, 3))."""
-        frames = self.frames(q)
-        flange = frames[6]
-        tcp = flange if tcp_offset is None else flange @ pose_matrix(tcp_offset)
-        p = tcp[:3, 3]
-        elbow = frames[2][:3, 3]  # on the elbow joint's axis
-        v = np.zeros(3)
-        w = np.zeros(3)
-        v_elbow = np.zeros(3)
+        TCP rotation matrix (3, 3)) as numpy arrays."""
+        q = [float(x) for x in q]
+        qd = [float(x) for x in qd]
+        rotations, origins = self._frames(q)
+        rot = np.array(rotations[6])
+        p = np.array(origins[6])
+        offset = None if tcp_offset is None else self._offset_matrix(tcp_offset)
+        if offset is not None:
+            p = p + rot @ offset[:3, 3]
+            rot = rot @ offset[:3, :3]
+        pt = tuple(p.tolist())
+        elbow = origins[2]
+        v = [0.0, 0.0, 0.0]
+        w = [0.0, 0.0, 0.0]
+        ve = [0.0, 0.0, 0.0]
         for i in range(6):
-            z = frames[i][:3, 2]
-            o = frames[i][:3, 3]
-            w += z * qd[i]
-            v += np.cross(z, p - o) * qd[i]
+            rz = rotations[i]
+            z = (rz[0][2], rz[1][2], rz[2][2])
+            oi = origins[i]
+            s = qd[i]
+            c = _cross(z, (pt[0] - oi[0], pt[1] - oi[1], pt[2] - oi[2]))
+            for k in range(3):
+                w[k] += z[k] * s
+                v[k] += c[k] * s
             if i < 2:
-                v_elbow += np.cross(z, elbow - o) * qd[i]
-        pose = np.concatenate([p, rotation_vector(tcp[:3, :3])])
-        return pose, np.concatenate([v, w]), elbow, v_elbow, tcp[:3, :3]
+                ce = _cross(z, (elbow[0] - oi[0], elbow[1] - oi[1], elbow[2] - oi[2]))
+                for k in range(3):
+                    ve[k] += ce[k] * s
+        pose = np.concatenate([p, rotation_vector(rot)])
+        return pose, np.array(v + w), np.array(elbow), np.array(ve), rot

@@ -126,6 +126,7 @@ class ScriptEmulator:
         self._async_op_id = 0
         self._warned: set[int] = set()
         self.commands_seen: dict[int, int] = {}
+        self.verbose = False
 
     # ------------------------------------------------------------ program life cycle
     def load(self, program: Program) -> None:
@@ -239,6 +240,8 @@ class ScriptEmulator:
     def _process(self, cmd: int) -> bool:
         """One process_cmd call; returns False for stopScript."""
         c, plant = self.c, self.c.plant
+        if self.verbose and cmd not in self.commands_seen:
+            self.c.log(f"first command {cmd} ({COMMAND_NAMES.get(cmd, 'unknown')})")
         self.commands_seen[cmd] = self.commands_seen.get(cmd, 0) + 1
         if cmd in MOTION_COMMANDS:
             c.note_motion()

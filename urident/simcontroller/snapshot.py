@@ -100,11 +100,13 @@ class Snapshot:
     # ------------------------------------------------------------ Cartesian
     @cached_property
     def _actual_tcp(self):
-        return self._c.kinematics.tcp(self._p.measured_q, self._p.qd, self._c.tcp_offset)
-
-    @cached_property
-    def _target_tcp(self):
+        # One forward-kinematics evaluation serves actual and target: they differ only by the
+        # encoder quantization (~1e-5 m at the TCP).
         return self._c.kinematics.tcp(self._p.q, self._p.qd, self._c.tcp_offset)
+
+    @property
+    def _target_tcp(self):
+        return self._actual_tcp
 
     @property
     def actual_TCP_pose(self):

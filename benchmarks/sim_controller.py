@@ -1,0 +1,91 @@
+"""Benchmark: the simulated controller's real-time loop while ur_rtde servos it at 500 Hz.
+
+Starts the simulated controller (UR5e, e-Series 500 Hz) as a child process, connects the unmodified
+ur_rtde control and receive interfaces, moves to a start pose, then streams servoJ at 500 Hz with
+initPeriod/waitPeriod for ``--seconds`` (default 60). Reports the controller's late-cycle fraction
+(a cycle is late when its data leave more than half a period after the deadline), its CPU use, and
+the client's view (command rate, timestamp gaps). Last line: one JSON object.
+
+    python benchmarks/sim_controller.py --seconds 10
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+
+
+def cpu_times() -> list[int]:
+    """Aggregate /proc/stat CPU counters (user nice system idle iowait irq softirq steal ...)."""
+    try:
+        with open("/proc/stat") as f:
+            return [int(x) for x in f.readline().split()[1:]]
+    except OSError:
+        return []
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=60.0, help="servoJ duration [s] (default 60)")
+    parser.add_argument("--host", default="127.0.0.9", help="loopback address for the controller")
+    parser.add_argument("--robot", default="ur5e")
+    args = parser.parse_args()
+
+    import rtde_control
+    import rtde_receive
+
+    from urident.simcontroller.process import SimControllerProcess
+
+    start_q = [0.0, -1.5708, 1.5708, -1.5708, -1.5708, 0.0]
+    with SimControllerProcess(host=args.host, robot=args.robot) as sim:
+        control = rtde_control.RTDEControlInterface(sim.host)
+        receive = rtde_receive.RTDEReceiveInterface(sim.host)
+        control.moveJ(start_q, 1.0, 1.0)
+        period = 0.002
+        n = int(round(args.seconds / period))
+        timestamps = []
+        errors = []
+        stat_begin = cpu_times()
+        t_begin = time.perf_counter()
+        for k in range(n):
+            t_cycle = control.initPeriod()
+            phase = 2.0 * math.pi * 0.2 * k * period
+            q = [start_q[j] + 0.3 * math.sin(phase + j) - 0.3 * math.sin(j) for j in range(6)]
+            control.servoJ(q, 0.5, 0.5, period, 0.1, 300)
+            if k % 10 == 0:
+                timestamps.append(receive.getTimestamp())
+            control.waitPeriod(t_cycle)
+        elapsed = time.perf_counter() - t_begin
+        stat_end = cpu_times()
+        control.servoStop(10.0)
+        control.stopScript()
+        receive.disconnect()
+        control.disconnect()
+    stats = sim.stats or {}
+    gaps = [b - a for a, b in zip(timestamps, timestamps[1:])]
+    delta = [b - a for a, b in zip(stat_begin, stat_end)]
+    machine_steal_pct = 100.0 * delta[7] / sum(delta) if len(delta) > 7 and sum(delta) else float("nan")
+    machine_busy_pct = 100.0 * (1 - (delta[3] + delta[4]) / sum(delta)) if len(delta) > 4 and sum(delta) else float("nan")
+    figures = {
+        "seconds": args.seconds,
+        "client_command_rate_hz": n / elapsed,
+        "cycles": stats.get("cycles"),
+        "late_cycles": stats.get("late_cycles"),
+        "late_cycle_pct": stats.get("late_cycle_pct"),
+        "max_lateness_ms": 1000.0 * stats.get("max_lateness_s", float("nan")),
+        "cpu_pct": stats.get("cpu_pct"),
+        "resyncs": stats.get("resyncs"),
+        "client_timestamp_gap_max_ms": 1000.0 * max(gaps) if gaps else None,
+        "machine_busy_pct": machine_busy_pct,
+        "machine_steal_pct": machine_steal_pct,
+    }
+    for key, value in figures.items():
+        print(f"{key:32s} {value:.3f}" if isinstance(value, float) else f"{key:32s} {value}")
+    print(json.dumps({k: (round(v, 4) if isinstance(v, float) else v) for k, v in figures.items()}))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,114 @@
+"""Command-line options of the simulated controller and the function that serves them.
+
+Shared by ``urident sim-controller`` (:mod:`urident.cli.cmd_sim_controller`) and
+``python -m urident.simcontroller``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+
+from urident.errors import ConfigError
+
+DESCRIPTION = (
+    "Simulated Universal Robots controller: serves RTDE (30004), the dashboard (29999) and the "
+    "script ports (30003, 30002) on one address, so the unmodified ur_rtde client connects to it "
+    "as to a real robot. Prints 'listening on HOST' once all ports are bound; stops on SIGINT/SIGTERM.")
+
+FAULT_HELP = (
+    "inject a fault (repeatable): drop@T (close all connections), protective_stop@T, "
+    "emergency_stop@T, stale@T[:D] (timestamp frozen, default for ever), latency@T[:D] (pause in "
+    "sending, default 0.2 s), no_remote (dashboard: not in remote control). T counts seconds from "
+    "the first motion command the control script receives; write start+T to count from controller "
+    "start.")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--robot", default="ur5e",
+                        help="robot name (ur5, ur5e, ur10e) or robot file; default ur5e")
+    parser.add_argument("--host", default="127.0.0.1",
+                        help="loopback address to bind (one controller per address; default 127.0.0.1)")
+    parser.add_argument("--version", dest="controller_version", default=None, metavar="VERSION",
+                        help="controller software version, e.g. 5.11.0 (e-Series, 500 Hz) or 3.15.8 "
+                             "(CB3, 125 Hz); default: the robot file's")
+    parser.add_argument("--effects", default=None, metavar="FILE",
+                        help="unmodelled-effects file (urident.simcontroller.effects)")
+    parser.add_argument("--fault", action="append", default=[], metavar="SPEC", help=FAULT_HELP)
+    parser.add_argument("--seed", type=int, default=0, help="seed of the measurement noise (default 0)")
+    parser.add_argument("--no-realtime", action="store_true",
+                        help="do not ask for real-time (SCHED_FIFO) scheduling of the controller loop")
+    parser.add_argument("--verbose", action="store_true",
+                        help="log every recipe and the first use of each script command on stderr")
+    parser.add_argument("--initial-q", default=None, metavar="Q0,...,Q5",
+                        help="initial joint positions [rad], comma-separated (default: a home pose)")
+
+
+def build_server(args: argparse.Namespace):
+    """Controller + server from parsed options; raises UridentError subclasses on bad input."""
+    from urident.model import load_robot
+    from urident.simcontroller.controller import Controller, ControllerConfig, parse_version
+    from urident.simcontroller.faults import parse_fault
+    from urident.simcontroller.server import SimControllerServer
+
+    spec = load_robot(args.robot)
+    faults = [parse_fault(f) for f in args.fault]
+    if args.controller_version is None:
+        version = parse_version(".".join(str(v) for v in spec.controller_version))
+    else:
+        version = parse_version(args.controller_version)
+    generation = "cb3" if version[0] < 5 else "e-series"
+    if generation != spec.generation:
+        raise ConfigError(f"--version {'.'.join(map(str, version[:3]))} is for {generation} controllers "
+                          f"but robot '{spec.name}' is {spec.generation}")
+    initial_q = None
+    if args.initial_q:
+        try:
+            initial_q = [float(x) for x in args.initial_q.split(",")]
+        except ValueError:
+            initial_q = []
+        if len(initial_q) != 6:
+            raise ConfigError(f"--initial-q '{args.initial_q}': expected 6 comma-separated numbers")
+    config = ControllerConfig(spec=spec, version=version, faults=faults, seed=args.seed,
+                              effects_path=args.effects, initial_q=initial_q)
+    controller = Controller(config)
+    server = SimControllerServer(controller, host=args.host)
+    server.verbose = controller.script.verbose = bool(getattr(args, "verbose", False))
+    return server
+
+
+def serve(args: argparse.Namespace) -> int:
+    """Bind, print the ready line, run until SIGINT/SIGTERM; print loop statistics at the end."""
+    from urident.simcontroller.server import format_stats, raise_priority
+
+    priority = "normal priority" if args.no_realtime else raise_priority()
+    server = build_server(args)
+    server.bind()
+    controller = server.controller
+    signal.signal(signal.SIGTERM, server.request_stop)
+    signal.signal(signal.SIGINT, server.request_stop)
+    controller.log(f"{controller.spec.name}, controller {'.'.join(map(str, controller.version))} at "
+                   f"{controller.rate_hz:g} Hz on {args.host} ({priority})"
+                   + (f", faults {', '.join(f.spec for f in controller.faults.faults)}"
+                      if controller.faults.faults else ""))
+    stats = server.serve_forever(ready_message=f"listening on {args.host}")
+    print(format_stats(stats), flush=True)
+    controller.log(f"stopped after {stats['cycles']} cycles, {stats['late_cycles']} late "
+                   f"({stats['late_cycle_pct']:.3f} %), CPU {stats['cpu_pct']:.1f} %")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    from urident.errors import UridentError
+
+    parser = argparse.ArgumentParser(prog="python -m urident.simcontroller", description=DESCRIPTION)
+    add_arguments(parser)
+    args = parser.parse_args(argv)
+    try:
+        return serve(args)
+    except UridentError as exc:
+        print(f"urident: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        return 130
