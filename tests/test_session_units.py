@@ -93,9 +93,10 @@ def test_approach_distance_and_clearance():
     assert plan.max_joint_distance_rad == pytest.approx(0.1)
     with pytest.raises(SafetyError, match="starts 2.50 rad away on joint 3"):
         plan_approach(spec, start + np.array([0, 0, 2.5, 0, 0, 0]), start, 2.0)
-    with pytest.raises(SafetyError, match="passes 0.010 m from a collision"):
-        plan_approach(spec, start + 0.1, start, 2.0, clearance_m=0.05,
-                      distance_fn=lambda q: np.full(len(q), 0.01))
+    with pytest.raises(SafetyError, match="violates the collision clearance by 0.010 m"):
+        plan_approach(spec, start + 0.1, start, 2.0, margin_fn=lambda q: np.full(len(q), -0.01))
+    assert plan_approach(spec, start + 0.1, start, 2.0,
+                         margin_fn=lambda q: np.full(len(q), 0.2)).min_margin_m == pytest.approx(0.2)
 
 
 def test_experiment_config_errors(tmp_path):

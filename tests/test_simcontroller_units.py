@@ -10,7 +10,7 @@ import pytest
 from urident.errors import ConfigError
 from urident.model import load_robot
 from urident.simcontroller import fields
-from urident.simcontroller import rtde_protocol as rp
+from urident.rtde import protocol as rp
 from urident.simcontroller.controller import Controller, ControllerConfig, make_torque_model, parse_version
 from urident.simcontroller.faults import FaultSchedule, parse_fault
 from urident.simcontroller.plant import MoveProfile, Plant, servo_bandwidth

@@ -1,1 +1,30 @@
+"""Identification and validation: preprocessing, torque from current, estimation (OLS, bounded,
+physically consistent), validation metrics, parameter files and URDF export.
 
+Main entry points::
+
+    prepare(recordings, spec, PreprocessConfig(), drive_gains=None) -> Prepared
+    identify(spec, prepared, method="ols", model=ModelConfig(), weighting="none") -> IdentifiedModel
+    identify_all(spec, prepared, ("ols", "bounded", "consistent"), ...) -> {method: IdentifiedModel}
+    predict(identified, spec, q, qd, qdd) -> (N, 6) torques
+    validate(identified, spec, prepared) -> ValidationResult
+    save_params(identified, path) / load_params(path)
+"""
+
+from urident.ident.design import ModelConfig, design_matrix
+from urident.ident.estimate import Estimate
+from urident.ident.identify import (METHODS, IdentifiedModel, identify, identify_all, predict,
+                                    predict_prepared, prepare)
+from urident.ident.params_file import ParamsFileError, load_params, save_params
+from urident.ident.preprocess import (PreprocessConfig, Prepared, accelerations, concatenate,
+                                      preprocess, zero_phase_lowpass)
+from urident.ident.torque import estimate_drive_gains, parse_drive_gains, torque_from_current
+from urident.ident.validate import ValidationResult, metrics, validate
+
+__all__ = [
+    "METHODS", "Estimate", "IdentifiedModel", "ModelConfig", "ParamsFileError", "PreprocessConfig",
+    "Prepared", "ValidationResult", "accelerations", "concatenate", "design_matrix",
+    "estimate_drive_gains", "identify", "identify_all", "load_params", "metrics", "parse_drive_gains",
+    "predict", "predict_prepared", "prepare", "preprocess", "save_params", "torque_from_current",
+    "validate", "zero_phase_lowpass",
+]

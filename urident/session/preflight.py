@@ -26,7 +26,7 @@ class ApproachPlan:
     q_start: np.ndarray
     max_joint_distance_rad: float
     joint: int                      # joint (0-based) with the largest distance
-    min_clearance_m: float | None   # smallest collision distance along the joint-space path
+    min_margin_m: float | None      # smallest (distance − required clearance) along the path [m]
 
 
 def check_controller(spec: RobotSpec, version: tuple[int, ...], rate_hz: float,
@@ -66,10 +66,10 @@ def check_robot_state(robot_mode: int, safety_mode: int, safety_bits: int) -> No
 
 
 def plan_approach(spec: RobotSpec, q_now: np.ndarray, q_start: np.ndarray, max_distance_rad: float,
-                  clearance_m: float | None = None, distance_fn=None) -> ApproachPlan:
+                  margin_fn=None) -> ApproachPlan:
     """Check the moveJ from the current pose to the trajectory start: joint distance within
-    ``max_distance_rad`` and, when ``distance_fn`` (q (N, 6) → min distance (N,)) is given,
-    no collision along the straight joint-space path."""
+    ``max_distance_rad`` and, when ``margin_fn`` (q (N, 6) → smallest distance minus required
+    clearance (N,) [m]) is given, every pose of the straight joint-space path keeps its clearance."""
     q_now = np.asarray(q_now, dtype=float)
     q_start = np.asarray(q_start, dtype=float)
     if q_now.shape != (6,) or not np.all(np.isfinite(q_now)):
@@ -84,14 +84,15 @@ def plan_approach(spec: RobotSpec, q_now: np.ndarray, q_start: np.ndarray, max_d
         raise SafetyError(f"the trajectory starts {distance[joint]:.2f} rad away on joint {joint + 1} "
                           f"(limit approach.max_distance_rad = {max_distance_rad}): move the robot "
                           f"closer to {np.round(q_start, 3).tolist()} first")
-    clearance = None
-    if distance_fn is not None:
-        steps = max(2, int(np.ceil(distance[joint] / 0.01)) + 1)
+    margin = None
+    if margin_fn is not None:
+        steps = max(2, int(np.ceil(distance[joint] / 0.01)) + 1)  # every 0.01 rad
         path = q_now + np.linspace(0.0, 1.0, steps)[:, None] * (q_start - q_now)
-        d = np.asarray(distance_fn(path))
-        k = int(np.argmin(d))
-        clearance = float(d[k])
-        if clearance_m is not None and clearance < clearance_m:
-            raise SafetyError(f"the approach to the start passes {clearance:.3f} m from a collision "
-                              f"(clearance {clearance_m} m) at {np.round(path[k], 3).tolist()}")
-    return ApproachPlan(q_now, q_start, float(distance[joint]), joint, clearance)
+        margins = np.asarray(margin_fn(path))
+        k = int(np.argmin(margins))
+        margin = float(margins[k])
+        if margin < 0:
+            raise SafetyError(f"the approach to the start violates the collision clearance by "
+                              f"{-margin:.3f} m at {np.round(path[k], 3).tolist()}: move the robot "
+                              f"to a pose near the start first")
+    return ApproachPlan(q_now, q_start, float(distance[joint]), joint, margin)

@@ -53,6 +53,7 @@ class RobotLink:
         self.receive = None
         self.control = None
         self.dashboard = None
+        self._stopped = False
 
     # ------------------------------------------------------------------ connection
     def connect_receive(self) -> None:
@@ -118,6 +119,18 @@ class RobotLink:
             "runtime_state": r.getRuntimeState(),
         }
 
+    def monitor_state(self) -> tuple[float, list, int, int]:
+        """(timestamp, actual_q, safety_status_bits, runtime_state): what the monitors need."""
+        r = self.receive
+        if not r.isConnected():
+            raise ConnectionLost(f"RTDE connection to {self.host} lost")
+        return r.getTimestamp(), r.getActualQ(), r.getSafetyStatusBits(), r.getRuntimeState()
+
+    def stream_state(self) -> dict[str, object]:
+        """The extra fields a live view needs."""
+        r = self.receive
+        return {"actual_qd": r.getActualQd(), "actual_current": r.getActualCurrent()}
+
     def actual_q(self) -> np.ndarray:
         return np.asarray(self.receive.getActualQ(), dtype=float)
 
@@ -144,15 +157,41 @@ class RobotLink:
 
     # ------------------------------------------------------------------ shutdown
     def stop(self) -> list[str]:
-        """servoStop then stopScript, each attempted whatever happened before; returns what failed."""
+        """servoStop then stopScript, each attempted whatever happened before; returns what failed.
+
+        ur_rtde must not be sent commands once its control connection is lost (it crashes the
+        process later); the dashboard's ``stop`` (a separate connection) stops the program then.
+        """
+        if self._stopped or self.control is None:
+            return []
+        self._stopped = True
         problems = []
-        if self.control is not None:
+        try:
+            connected = bool(self.control.isConnected())
+        except Exception:  # noqa: BLE001
+            connected = False
+        if connected:
             for name in ("servoStop", "stopScript"):
                 try:
                     getattr(self.control, name)()
                 except Exception as exc:  # noqa: BLE001 - shutdown must try every step
                     problems.append(f"{name}: {exc}")
+            return problems
+        problems.append("control connection lost: servoStop/stopScript could not be sent")
+        problems += self._dashboard_stop()
         return problems
+
+    def _dashboard_stop(self) -> list[str]:
+        import dashboard_client
+
+        try:
+            dashboard = dashboard_client.DashboardClient(self.host)
+            dashboard.connect()
+            dashboard.stop()
+            dashboard.disconnect()
+            return ["program stopped through the dashboard instead"]
+        except Exception as exc:  # noqa: BLE001
+            return [f"dashboard stop failed too ({exc}): check the robot"]
 
     def close(self) -> list[str]:
         problems = self.stop()

@@ -10,7 +10,9 @@ log; rest at the final point; then — always, in a ``finally`` — servoStop an
 from __future__ import annotations
 
 import hashlib
+import os
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -22,7 +24,7 @@ from urident import __version__
 from urident.errors import ConfigError, ConnectionLost, SafetyError, SessionAborted
 from urident.model import RobotSpec, load_robot
 from urident.session.config import ExperimentConfig
-from urident.session.monitors import RunMonitor
+from urident.session.monitors import RunMonitor, safety_problem
 from urident.session.preflight import (ApproachPlan, check_controller, check_robot_state,
                                        plan_approach)
 from urident.session.rtde_io import ControllerInfo, RobotLink
@@ -75,9 +77,7 @@ def plan_motion(spec: RobotSpec, trajectory_path: Path, rate_hz: float, repeat: 
         raise ConfigError(f"{trajectory_path}: trajectory is for robot '{traj_file.robot}', "
                           f"not '{spec.name}'")
     report = check_trajectory(spec, traj_file.trajectory, rate_hz, traj_file.limits)
-    if not report.ok:
-        raise SafetyError(f"{trajectory_path}: {report.violations[0]} (checked at {rate_hz:g} Hz; "
-                          f"run 'urident check-trajectory {trajectory_path}' for the full report)")
+    report.raise_if_unsafe(f"{trajectory_path} (checked at {rate_hz:g} Hz)")
     if repeat < 1:
         raise ConfigError(f"--repeat must be at least 1, not {repeat}")
     _, q, _, _ = sample(traj_file.trajectory, rate_hz)
@@ -110,17 +110,16 @@ def run_session(request: RunRequest, say: Callable[[str], None] = print,
             raise SafetyError(f"{request.host} is in local control: switch the teach pendant to "
                               f"remote control")
         motion = plan_motion(spec, request.trajectory, info.rate_hz, request.repeat, config.rest_s)
-        clearance = getattr(motion.trajectory_file.limits, "clearance_m", None)
         approach = plan_approach(spec, link.actual_q(), motion.q_cmd[0],
-                                 config.approach.max_distance_rad, clearance,
-                                 _distance_function(spec))
+                                 config.approach.max_distance_rad,
+                                 _clearance_function(spec, motion.trajectory_file.limits))
         result.approach = approach
         say(f"{spec.description} at {request.host}: controller {info.version_text}, "
             f"{info.rate_hz:g} Hz; trajectory {request.trajectory} passed every check at "
             f"{info.rate_hz:g} Hz ({len(motion.q_cmd)} servo periods, {motion.t[-1]:.1f} s)")
         say(f"approach: {approach.max_joint_distance_rad:.3f} rad on joint {approach.joint + 1} at "
             f"{config.approach.speed_rad_s} rad/s"
-            + (f", clearance {approach.min_clearance_m:.3f} m" if approach.min_clearance_m is not None else ""))
+            + (f", collision margin {approach.min_margin_m:.3f} m" if approach.min_margin_m is not None else ""))
         if request.check_only:
             return result
         if not request.assume_yes:
@@ -136,17 +135,53 @@ def run_session(request: RunRequest, say: Callable[[str], None] = print,
             say(f"warning: while stopping: {problem}")
 
 
-def _distance_function(spec: RobotSpec):
+def _clearance_function(spec: RobotSpec, limits):
+    """q (N, 6) → smallest (distance − required clearance) over the checked capsule pairs [m]."""
+    from urident.excitation.collision import capsule_model
+
+    capsules = capsule_model(spec, limits.clearance_m, limits.floor_height_m)
+    return lambda q: capsules.margins(spec, q).min(axis=1)
+
+
+def _rejection_cause(link: RobotLink, period: float) -> str:
+    """Why the controller refused a command: the control connection can see a stop a few
+    packages before the receive connection does, so give the latter up to 20 periods."""
+    for _ in range(20):
+        _, _, safety_bits, runtime_state = link.monitor_state()
+        problem = safety_problem(int(safety_bits))
+        if problem:
+            return problem
+        if runtime_state != 2:
+            return f"control program stopped, runtime_state={runtime_state}"
+        time.sleep(period)
+    return "no reason reported"
+
+
+RT_PRIORITY = 20  # above the simulated controller's 10, below kernel threads
+
+
+@contextmanager
+def _realtime_scheduling():
+    """Run the control loop thread with SCHED_FIFO when the OS allows it (root or CAP_SYS_NICE);
+    yields a description for the log. The previous policy is restored afterwards."""
+    if not hasattr(os, "sched_setscheduler"):
+        yield "unchanged (not supported on this OS)"
+        return
+    previous = os.sched_getscheduler(0), os.sched_getparam(0)
     try:
-        from urident.excitation import min_distances
-    except ImportError:  # pragma: no cover - the excitation package always provides it
-        return None
-    return lambda q: min_distances(spec, q)
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(RT_PRIORITY))
+    except OSError:
+        yield "normal (no permission for real-time scheduling)"
+        return
+    try:
+        yield f"SCHED_FIFO priority {RT_PRIORITY}"
+    finally:
+        os.sched_setscheduler(0, previous[0], previous[1])
 
 
 def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion: PlannedMotion,
              link: RobotLink, result: RunResult, say: Callable[[str], None], live) -> RunResult:
-    from urident.logs import LogWriter
+    from urident.session.recorder import RtdeRecorder
 
     config = request.config
     period = 1.0 / info.rate_hz
@@ -165,11 +200,14 @@ def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion:
         "robot_model_reported": info.robot_model,
     }
     request.out.parent.mkdir(parents=True, exist_ok=True)
-    writer = LogWriter(request.out, metadata=metadata, overwrite=True)
+    recorder = RtdeRecorder(request.host, info.rate_hz, request.out, metadata)
+    recorder.start()  # every controller sample from here on is in the log
     monitor = RunMonitor(config.monitors, period)
     periods = np.full(len(motion.q_cmd), np.nan)
     abort_reason: str | None = None
-    n_samples = 0
+    servo_timestamps: list[float] = []
+    scheduling = _realtime_scheduling()
+    scheduling_note = scheduling.__enter__()
     try:
         say(f"moving to the start at {config.approach.speed_rad_s} rad/s …")
         if not link.move_joints(motion.q_cmd[0], config.approach.speed_rad_s,
@@ -188,23 +226,23 @@ def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion:
                 periods[k] = now - last_start
             last_start = now
             if not link.servo(q_cmd, period, lookahead, gain):
-                abort_reason = "the controller rejected servoJ (program not running or stopped)"
+                abort_reason = (f"at t = {k * period:.3f} s: the controller rejected servoJ "
+                                f"({_rejection_cause(link, period)})")
                 break
-            state = link.state()
-            if writer.append(state):
-                n_samples += 1
-            q = np.asarray(state["actual_q"])
-            abort_reason = monitor.check(q_cmd, q, state["timestamp"], state["safety_status_bits"],
-                                         state["runtime_state"], work_s)
+            timestamp, q, safety_bits, runtime_state = link.monitor_state()
+            if k == 0:
+                servo_timestamps.append(timestamp)
+            abort_reason = monitor.check(q_cmd, np.asarray(q), timestamp, safety_bits, runtime_state,
+                                         work_s)
             if live is not None:
-                live.push(state, q_cmd)
+                live.push({"timestamp": timestamp, "actual_q": q, **link.stream_state()}, q_cmd)
             if abort_reason:
                 abort_reason = f"at t = {k * period:.3f} s: {abort_reason}"
                 break
             work_s = time.perf_counter() - now
-            if work_s > period + config.monitors.late_tolerance_s:
-                writer.mark_late_cycle()
             link.wait_period(t_start)
+        else:
+            servo_timestamps.append(timestamp)
     except KeyboardInterrupt:
         abort_reason = "interrupted by the operator (Ctrl-C)"
     except ConnectionLost as exc:
@@ -214,19 +252,22 @@ def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion:
     except SessionAborted as exc:
         abort_reason = str(exc)
     finally:
-        # Stop first, then close the log: the robot must not wait on the disk.
+        # Stop the robot first; the recorder then writes what the controller sent until the stop.
         problems = link.stop()
+        scheduling.__exit__(None, None, None)
         valid = periods[np.isfinite(periods)]
         errors = np.abs(valid - period) if len(valid) else np.zeros(1)
         result.period_error_s = {"p50": float(np.percentile(errors, 50)),
                                  "p99": float(np.percentile(errors, 99)), "max": float(errors.max())}
-        extra = {"period_error_s": result.period_error_s,
-                 "max_tracking_error_rad": monitor.max_tracking_error,
-                 "stop_problems": problems}
         status = "aborted" if abort_reason else "completed"
-        writer.close(status=status, abort_reason=abort_reason, extra=extra)
+        extra = {"period_error_s": result.period_error_s, "scheduling": scheduling_note,
+                 "max_tracking_error_rad": monitor.max_tracking_error,
+                 "servo_timestamps_s": servo_timestamps, "stop_problems": problems,
+                 "late_cycles": monitor.late.late}
+        stats = recorder.stop(status, abort_reason, extra)
         if live is not None:
             live.close(abort_reason)
+    n_samples = stats.n_samples if stats else 0
     result.status = status
     result.log_path = request.out
     result.n_samples = n_samples
@@ -236,6 +277,7 @@ def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion:
     if abort_reason:
         raise SessionAborted(f"run aborted {abort_reason}; robot stopped; {n_samples} samples "
                              f"kept in {request.out}")
-    say(f"completed: {n_samples} samples in {request.out} ({monitor.late.late} late cycles, "
-        f"max tracking error {monitor.max_tracking_error:.4f} rad)")
+    missed = stats.missed_samples if stats else 0
+    say(f"completed: {n_samples} samples in {request.out} ({missed} missed, {monitor.late.late} "
+        f"late cycles, max tracking error {monitor.max_tracking_error:.4f} rad)")
     return result

@@ -9,7 +9,7 @@ or from Python with :class:`urident.simcontroller.process.SimControllerProcess`.
 
 Modules, one concept each:
 
-* :mod:`.rtde_protocol` - RTDE framing, value types, recipe packing (port 30004)
+* :mod:`urident.rtde.protocol` - RTDE framing, value types, recipe packing (port 30004)
 * :mod:`.fields`        - RTDE output/input names, types and the versions that have them
 * :mod:`.snapshot`      - one cycle's output values by field name
 * :mod:`.dashboard`     - dashboard replies (port 29999)

@@ -8,7 +8,6 @@ hand work over with :meth:`Controller.call_soon` or write input registers with
 
 from __future__ import annotations
 
-import inspect
 import queue
 import sys
 import threading
@@ -64,22 +63,11 @@ def rate_for_version(version: tuple[int, ...]) -> float:
 
 
 def load_effects(path: str, spec, rng: np.random.Generator):
-    """Load an unmodelled-effects file (or preset name) through
-    ``urident.simcontroller.effects.load_effects(path, spec=..., rng=...)``; the returned object
-    provides the plant hooks ``extra_torque`` / ``measure_current``."""
-    try:
-        from urident.simcontroller import effects as effects_module
-    except ModuleNotFoundError as exc:
-        if exc.name == "urident.simcontroller.effects":
-            raise ConfigError(f"--effects {path}: the unmodelled-effects catalogue "
-                              "(urident.simcontroller.effects) is not installed yet") from None
-        raise
-    loader = getattr(effects_module, "load_effects", None)
-    if loader is None:
-        raise ConfigError(f"--effects {path}: urident.simcontroller.effects has no load_effects()")
-    accepted = inspect.signature(loader).parameters
-    kwargs = {k: v for k, v in (("spec", spec), ("rng", rng)) if k in accepted}
-    return loader(path, **kwargs)
+    """The unmodelled effects of an effects file or preset name (``realistic``); the returned
+    object provides the plant hooks ``extra_torque`` / ``measure_current``."""
+    from urident.simcontroller.effects import load_effects as load
+
+    return load(path, spec=spec, rng=rng)
 
 
 def make_torque_model(spec):

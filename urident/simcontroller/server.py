@@ -26,7 +26,7 @@ import time
 
 from urident.errors import UridentError
 from urident.simcontroller import fields
-from urident.simcontroller import rtde_protocol as rp
+from urident.rtde import protocol as rp
 from urident.simcontroller.controller import Controller
 from urident.simcontroller.dashboard import WELCOME, DashboardSession
 from urident.simcontroller.script_emulator import ScriptStream

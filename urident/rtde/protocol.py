@@ -1,8 +1,8 @@
 """RTDE wire format (TCP port 30004): message framing, value types and recipe codecs.
 
 Every message is ``uint16 size`` (header included) + ``uint8 type`` + payload, big-endian. This
-module only packs and unpacks bytes; what the controller answers lives in :mod:`.server`, which
-fields exist in :mod:`.fields`.
+module only packs and unpacks bytes: the simulated controller's answers live in
+:mod:`urident.simcontroller.server`, the session recorder's requests in :mod:`urident.session.recorder`.
 """
 
 from __future__ import annotations

@@ -1,0 +1,309 @@
+"""Identification: preprocessing, estimation on simulated data, parameter files, URDF, CLI."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from urident.errors import ConfigError, LogFormatError, UridentError
+from urident.ident import (ModelConfig, PreprocessConfig, accelerations, identify, identify_all,
+                           load_params, metrics, predict, prepare, preprocess, save_params, validate)
+from urident.ident.design import base_for, design_matrix, nonnegative_mask
+from urident.ident.estimate_consistent import is_physically_consistent
+from urident.ident.friction import dahl_state
+from urident.ident.preprocess import Prepared, rest_trim_range
+from urident.ident.synthetic import random_multisine, synthetic_recording
+from urident.ident.torque import (estimate_drive_gains, parse_drive_gains, payload_params,
+                                  payload_torque)
+from urident.model import joint_torques, load_robot
+
+
+@pytest.fixture(scope="module")
+def spec():
+    return load_robot("ur5")
+
+
+@pytest.fixture(scope="module")
+def sim(spec):
+    """20 s at 250 Hz, current noise 0.03 A, true accelerations known."""
+    rec, qdd, tau = synthetic_recording(spec, duration_s=20.0, rate_hz=250.0, current_noise_a=0.03, seed=3)
+    return rec, qdd, tau
+
+
+def exact_prepared(spec, rec, qdd) -> Prepared:
+    return Prepared(rec.t, rec.q, rec.qd, qdd, rec.current * spec.drive_gains, spec.drive_gains)
+
+
+# ----------------------------------------------------------------------------- preprocessing
+def test_accelerations_zero_phase_on_jittery_timestamps(rng):
+    t = np.cumsum(rng.uniform(0.006, 0.014, size=3000))  # 100 Hz nominal, heavy jitter
+    f = 0.7
+    qd = np.sin(2 * np.pi * f * t)[:, None] * np.ones(6)
+    qdd = accelerations(t, qd, filter_hz=10.0)
+    true = 2 * np.pi * f * np.cos(2 * np.pi * f * t)
+    inner = slice(100, -100)
+    # |L|^2 at 0.7 Hz is 0.995: no lag, small attenuation
+    err = qdd[inner, 0] - true[inner]
+    assert np.max(np.abs(err)) < 0.02 * 2 * np.pi * f
+    # a naive filtfilt of s/(s/w+1) would give minus the derivative of qdd: check we are not that
+    assert np.corrcoef(qdd[inner, 0], true[inner])[0, 1] > 0.999
+
+
+def test_preprocess_trims_rest_and_decimates(spec):
+    rec, _, _ = synthetic_recording(spec, duration_s=4.0, rate_hz=200.0, seed=1)
+    qd = np.array(rec.qd)
+    qd[:50] = 0.0
+    qd[-30:] = 1e-4
+    q = np.array(rec.q)
+    from dataclasses import replace
+
+    rec2 = replace(rec, qd=qd, q=q)
+    assert rest_trim_range(qd, 1e-3) == (50, len(qd) - 30)
+    data = preprocess(rec2, spec, PreprocessConfig(decimate=2))
+    assert len(data) == len(range(50, len(qd) - 30, 2))
+    assert data.provenance[0].samples_used == (50, len(qd) - 30)
+    np.testing.assert_allclose(data.tau, (rec.current * spec.drive_gains)[50:-30:2])
+
+
+def test_preprocess_rejects_nan_and_wrong_robot(spec):
+    rec, _, _ = synthetic_recording(spec, duration_s=1.0, rate_hz=100.0)
+    from dataclasses import replace
+
+    cur = np.array(rec.current)
+    cur[10, 2] = np.nan
+    with pytest.raises(LogFormatError, match="current holds NaN"):
+        preprocess(replace(rec, current=cur), spec)
+    with pytest.raises(ConfigError, match="recorded on robot 'ur10e'"):
+        preprocess(replace(rec, robot="ur10e"), spec)
+
+
+def test_drive_gains_option_and_errors(spec):
+    np.testing.assert_allclose(parse_drive_gains("1,2,3,4,5,6"), [1, 2, 3, 4, 5, 6])
+    for bad in ("1,2,3", "1,2,3,4,5,x", "1,2,3,4,5,-6"):
+        with pytest.raises(ConfigError, match="--drive-gains"):
+            parse_drive_gains(bad)
+
+
+def test_drive_gain_estimation_from_payload_runs():
+    spec = load_robot("ur10e")
+    rng = np.random.default_rng(7)
+    true_gains = spec.drive_gains * rng.uniform(0.9, 1.1, size=6)
+    payload = payload_params(8.0, [0.05, 0.08, 0.1])
+    runs = []
+    for k, load in enumerate((None, payload)):
+        traj = random_multisine(spec, np.random.default_rng(10 + k), speed_fraction=0.5)
+        t = np.arange(0, 20.0, 0.004)
+        q, qd, qdd = traj(t)
+        tau = joint_torques(spec, spec.nominal_params, q, qd, qdd)
+        if load is not None:
+            tau = tau + payload_torque(spec, q, qd, qdd, load)
+        current = tau / true_gains + rng.normal(0, 0.01, size=tau.shape)
+        runs.append((q, qd, qdd, current))
+    est = estimate_drive_gains(spec, runs[0], runs[1], payload)
+    np.testing.assert_allclose(est.gains, true_gains, rtol=0.02)
+    assert np.all(np.abs(est.gains - true_gains) < 4 * est.sigma)
+    # without the payload's torque there is nothing to fix the scale: the estimate must be wrong
+    assert not np.allclose(estimate_drive_gains(spec, runs[0], runs[1], 0.1 * payload).gains,
+                           true_gains, rtol=0.02)
+
+
+# ----------------------------------------------------------------------------- estimation
+@pytest.mark.parametrize("reduced", [False, True])
+def test_ols_recovers_base_parameters_within_sigma(spec, sim, reduced):
+    rec, qdd, _ = sim
+    base = base_for(spec, reduced)
+    params = spec.nominal_params.copy()
+    if reduced:  # simulate a robot the reduced model describes exactly
+        params[np.setdiff1d(np.arange(78), base.modelled)] = 0.0
+    noise = np.random.default_rng(4).normal(0, 0.03, (len(rec), 6)) * spec.drive_gains
+    tau = joint_torques(spec, params, rec.q, rec.qd, qdd) + noise
+    data = Prepared(rec.t, rec.q, rec.qd, qdd, tau, spec.drive_gains)
+    model = identify(spec, data, "ols", ModelConfig(reduced=reduced))
+    true = base.from_standard(params)
+    z = np.abs(model.values - true) / model.sigma
+    assert np.mean(z < 4) >= 0.95, z
+    assert model.values.shape == ((33,) if reduced else (base.n_base,))
+    # σ² is the noise variance: current noise 0.03 A times the drive gains
+    expected = np.mean((0.03 * spec.drive_gains) ** 2)
+    assert 0.8 * expected < model.noise_var < 1.2 * expected
+
+
+def test_full_pipeline_recovers_parameters(spec, sim):
+    """Accelerations from the filter, not the truth: the filter's small attenuation at the
+    trajectory's frequencies (<= 0.5 Hz) keeps estimates close to the truth."""
+    rec, _, _ = sim
+    data = prepare([rec], spec, PreprocessConfig(filter_hz=10.0))
+    model = identify(spec, data, "ols")
+    true = base_for(spec, False).from_standard(spec.nominal_params)
+    z = np.abs(model.values - true) / model.sigma
+    assert np.mean(z < 4) >= 0.9, z
+    res = validate(model, spec, prepare([rec], spec))
+    assert res.mean_rms_nm < 1.3 * np.sqrt(model.noise_var)
+
+
+def test_bounded_respects_positivity_and_matches_ols(spec, sim):
+    rec, qdd, _ = sim
+    data = exact_prepared(spec, rec, qdd)
+    models = identify_all(spec, data, ("ols", "bounded"))
+    mask = nonnegative_mask(spec, ModelConfig())
+    names = np.array(models["ols"].names)
+    assert {"IM4", "fv1", "fc6"} <= set(names[mask])
+    assert not any(n.startswith("mr") for n in names[mask])
+    assert np.all(models["bounded"].values[mask] >= 0)
+    true = base_for(spec, False).from_standard(spec.nominal_params)
+    z = np.abs(models["bounded"].values - true) / models["bounded"].sigma
+    assert np.mean(z < 4) >= 0.95
+
+
+def test_bounded_enforces_bounds_when_data_pull_negative(spec, sim):
+    rec, qdd, _ = sim
+    params = spec.nominal_params.copy()
+    params[72:78] = 0.0  # no Coulomb friction: noisy OLS gives some negative fc
+    tau = joint_torques(spec, params, rec.q, rec.qd, qdd) + np.random.default_rng(1).normal(0, 2.0, (len(rec), 6))
+    data = Prepared(rec.t, rec.q, rec.qd, qdd, tau, spec.drive_gains)
+    models = identify_all(spec, data, ("ols", "bounded"))
+    fc = [k for k, n in enumerate(models["ols"].names) if n.startswith("fc")]
+    assert np.any(models["ols"].values[fc] < 0)
+    assert np.all(models["bounded"].values[fc] >= 0)
+
+
+def test_consistent_is_physical_and_accurate(spec, sim):
+    rec, qdd, _ = sim
+    data = exact_prepared(spec, rec, qdd)
+    model = identify(spec, data, "consistent")
+    assert is_physically_consistent(model.standard, tol=1e-7)
+    base = base_for(spec, False)
+    np.testing.assert_allclose(model.values, base.from_standard(model.standard), atol=1e-12)
+    true = base.from_standard(spec.nominal_params)
+    z = np.abs(model.values - true) / model.sigma
+    assert np.mean(z < 4) >= 0.95, z
+
+
+def test_consistent_fixes_unphysical_ols(spec, sim):
+    """Heavy noise and a short window: OLS base values imply no realisable body; the SDP's do."""
+    rec, qdd, _ = sim
+    n = 300
+    tau = joint_torques(spec, spec.nominal_params, rec.q[:n], rec.qd[:n], qdd[:n])
+    tau = tau + np.random.default_rng(2).normal(0, 3.0, tau.shape)
+    data = Prepared(rec.t[:n], rec.q[:n], rec.qd[:n], qdd[:n], tau, spec.drive_gains)
+    models = identify_all(spec, data, ("ols", "consistent"))
+    assert is_physically_consistent(models["consistent"].standard, tol=1e-7)
+    mask = nonnegative_mask(spec, ModelConfig())
+    assert np.all(models["consistent"].values[mask] >= -1e-7)
+
+
+def test_urdf_export_reproduces_rigid_body_torques(spec, sim, tmp_path):
+    pin = pytest.importorskip("pinocchio")
+    from urident.ident.urdf import write_urdf
+    from urident.model import regressor_blocks
+
+    rec, qdd, _ = sim
+    model = identify(spec, exact_prepared(spec, rec, qdd), "consistent")
+    path = write_urdf(spec, model.standard, tmp_path / "arm.urdf")
+    pm = pin.buildModelFromUrdf(str(path))
+    data = pm.createData()
+    assert pm.nq == 6
+    idx = slice(0, len(rec), 500)
+    blocks = regressor_blocks(spec, rec.q[idx], rec.qd[idx], qdd[idx])
+    rigid = blocks[:, :, :60] @ model.standard[:60]
+    for k, (q, v, a) in enumerate(zip(rec.q[idx], rec.qd[idx], qdd[idx])):
+        np.testing.assert_allclose(pin.rnea(pm, data, q, v, a), rigid[k], atol=1e-8, rtol=1e-8)
+    with pytest.raises(ConfigError, match="physically consistent"):
+        bad = model.standard.copy()
+        bad[0] = -1.0
+        write_urdf(spec, bad, tmp_path / "bad.urdf")
+
+
+# ----------------------------------------------------------------------------- friction, metrics
+def test_dahl_state_holds_at_standstill():
+    q = np.r_[np.linspace(0, 0.2, 100), np.full(50, 0.2), np.linspace(0.2, 0.1, 100)][:, None] * np.ones(6)
+    z = dahl_state(q, 0.01)
+    assert z[99, 0] > 0.99          # moved +: saturated at +1
+    assert np.all(z[100:150, 0] == z[99, 0])  # holds while still
+    assert z[-1, 0] < -0.99         # moved back: -1
+    seg = np.r_[np.zeros(100, int), np.ones(150, int)]
+    assert dahl_state(q, 0.01, seg)[100, 0] == 0.0
+
+
+def test_metrics_definitions():
+    meas = np.ones((4, 6))
+    pred = meas.copy()
+    pred[:, 0] += 0.5
+    e_n, rms, rre = metrics(meas, pred)
+    assert e_n == pytest.approx(np.sqrt(4 * 0.25) / 4)  # ‖e‖/m with m time samples
+    np.testing.assert_allclose(rms, [0.5, 0, 0, 0, 0, 0])
+    np.testing.assert_allclose(rre, [50, 0, 0, 0, 0, 0])
+
+
+# ----------------------------------------------------------------------------- files and CLI
+def test_params_roundtrip_and_errors(spec, sim, tmp_path):
+    rec, qdd, _ = sim
+    data = exact_prepared(spec, rec, qdd)
+    model = identify(spec, data, "ols", ModelConfig(extras=("offset",), friction_eps=0.02))
+    path = tmp_path / "p.yaml"
+    save_params(model, path)
+    back = load_params(path)
+    assert back.model == model.model and back.names == model.names
+    np.testing.assert_allclose(predict(back, spec, rec.q[:50], rec.qd[:50], qdd[:50]),
+                               predict(model, spec, rec.q[:50], rec.qd[:50], qdd[:50]))
+    text = path.read_text()
+    for old, new, msg in [("format: urident-params", "format: other", "key 'format'"),
+                          ("method: ols", "method: magic", "key 'method'"),
+                          ("robot: ur5", "robot: ur10e", "robot 'ur10e'")]:
+        bad = tmp_path / "bad.yaml"
+        bad.write_text(text.replace(old, new, 1))
+        with pytest.raises(ConfigError, match=msg):
+            m = load_params(bad)
+            predict(m, spec, rec.q[:5], rec.qd[:5], qdd[:5])
+    lines = text.splitlines()
+    k = next(i for i, ln in enumerate(lines) if ln.strip().startswith("value:"))
+    lines[k] = lines[k].split(":")[0] + ": .nan"
+    bad.write_text("\n".join(lines))
+    with pytest.raises(ConfigError, match=r"bad.yaml: key 'base_parameters\[0\].value' must be finite"):
+        load_params(bad)
+    with pytest.raises(ConfigError, match="no such parameters file"):
+        load_params(tmp_path / "missing.yaml")
+
+
+def _write_log(rec, path):
+    from urident.logs import LogWriter
+
+    with LogWriter(path, fields=["timestamp", "actual_q", "actual_qd", "actual_current"],
+                   metadata={"robot": rec.robot, "rate_hz": rec.rate_hz}) as w:
+        for k in range(len(rec)):
+            w.append_sample(float(rec.t[k]), q=rec.q[k], qd=rec.qd[k], current=rec.current[k])
+
+
+def test_cli_identify_validate(spec, tmp_path, capsys):
+    from urident.cli.main import main
+
+    rec, _, _ = synthetic_recording(spec, duration_s=12.0, rate_hz=125.0, current_noise_a=0.03, seed=5)
+    val, _, _ = synthetic_recording(spec, duration_s=6.0, rate_hz=125.0, current_noise_a=0.03, seed=6)
+    _write_log(rec, tmp_path / "id.csv")
+    _write_log(val, tmp_path / "val.csv")
+    out = tmp_path / "params.yaml"
+    assert main(["identify", str(tmp_path / "id.csv"), "--robot", "ur5", "--out", str(out),
+                 "--method", "all", "--urdf", str(tmp_path / "arm.urdf"), "--friction-eps", "0.01"]) == 0
+    report = capsys.readouterr().out
+    assert "ols:train" in report and "consistent:train" in report
+    assert out.exists() and (tmp_path / "params.ols.yaml").exists() and (tmp_path / "arm.urdf").exists()
+    assert load_params(out).standard is not None
+    js = tmp_path / "v.json"
+    assert main(["validate", str(tmp_path / "val.csv"), "--params", str(tmp_path / "params.ols.yaml"),
+                 "--json-out", str(js), "--png", str(tmp_path / "png")]) == 0
+    result = json.loads(js.read_text())
+    assert {"e_n", "rms_nm", "rre_pct", "n_samples", "method"} <= set(result)
+    assert result["method"] == "ols" and len(result["rms_nm"]) == 6
+    assert max(result["rms_nm"]) < 2 * 0.03 * max(spec.drive_gains)
+    assert (tmp_path / "png" / "validation_params.ols.png").stat().st_size > 1000
+    # errors: one line, non-zero exit, no traceback
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("format: urident-params\nrobot: ur5\n")
+    assert main(["validate", str(tmp_path / "val.csv"), "--params", str(bad)]) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("urident: error: ") and "bad.yaml" in err[-1]
+    assert main(["identify", str(tmp_path / "id.csv"), "--robot", "ur5", "--out", str(out),
+                 "--drive-gains", "1,2"]) == 2
+    assert "--drive-gains" in capsys.readouterr().err

@@ -1,0 +1,158 @@
+"""``urident identify``: logs → identified parameters (PARAMS.yaml), comparison report, URDF."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+
+def add_model_arguments(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("model and estimation")
+    g.add_argument("--reduced", action="store_true",
+                   help="the paper's reduced model (33 base parameters) instead of the full one (52)")
+    g.add_argument("--friction-eps", type=float, default=0.01, metavar="E",
+                   help="tanh(qd/E) slope of the Coulomb friction [rad/s] (default 0.01, the paper's)")
+    g.add_argument("--coulomb", choices=("tanh", "dahl", "hold"), default="tanh",
+                   help="Coulomb friction model: tanh (paper); hold (tanh in motion, keeps the last "
+                        "motion's friction at standstill); dahl (presliding state in position)")
+    g.add_argument("--hold-velocity", type=float, default=3e-4, metavar="V",
+                   help="hold model: |qd| [rad/s] needed to reverse the friction state (default 3e-4, "
+                        "about 5x the standstill velocity noise of the UR10e logs)")
+    g.add_argument("--dahl-rad", type=float, default=0.01, metavar="D",
+                   help="Dahl presliding distance [rad] (default 0.01)")
+    g.add_argument("--friction-extra", default="", metavar="LIST",
+                   help="extra friction features, comma-separated: offset, stribeck, dahl")
+    g.add_argument("--stribeck-vs", type=float, default=0.05, metavar="V",
+                   help="Stribeck velocity [rad/s] (default 0.05)")
+    g.add_argument("--weighting", choices=("none", "joint"), default="none",
+                   help="none: the paper's plain least squares; joint: rows divided by each joint's "
+                        "residual std from a first fit")
+    g.add_argument("--regularisation", type=float, default=None, metavar="L",
+                   help="weight of the prior towards the robot file's parameters in the consistent "
+                        "method (default 1e-3)")
+
+
+def add_preprocess_arguments(p: argparse.ArgumentParser, trim_default: bool = True) -> None:
+    g = p.add_argument_group("preprocessing")
+    g.add_argument("--filter-hz", type=float, default=None, metavar="F",
+                   help="corner frequency of the acceleration filter [Hz] (default 10)")
+    g.add_argument("--torque-filter-hz", type=float, default=None, metavar="F",
+                   help="zero-phase low-pass of the torques [Hz] (default: off)")
+    g.add_argument("--decimate", type=int, default=None, metavar="K", help="keep every K-th sample")
+    g.add_argument("--trim-rest", dest="trim_rest", action="store_true", default=None,
+                   help="drop leading/trailing samples at rest" + (" (default)" if trim_default else ""))
+    g.add_argument("--no-trim-rest", dest="trim_rest", action="store_false",
+                   help="keep leading/trailing samples at rest" + ("" if trim_default else " (default)"))
+    g.add_argument("--rest-threshold", type=float, default=None, metavar="V",
+                   help="all |qd| below V [rad/s] counts as rest (default 0.001)")
+    g.add_argument("--drive-gains", default=None, metavar="G1,...,G6",
+                   help="joint-side drive gains i_G*k [N·m/A] (default: the robot file's)")
+
+
+def preprocess_config(args: argparse.Namespace, base=None, trim_default: bool = True):
+    from dataclasses import replace
+
+    from urident.ident import PreprocessConfig
+
+    cfg = base or PreprocessConfig(trim_rest=trim_default)
+    changes = {}
+    for attr, key in (("filter_hz", "filter_hz"), ("torque_filter_hz", "torque_filter_hz"),
+                      ("decimate", "decimate"), ("trim_rest", "trim_rest"),
+                      ("rest_threshold", "rest_threshold")):
+        value = getattr(args, attr, None)
+        if value is not None:
+            changes[key] = value
+    if base is not None:
+        # validating: the acceleration filter follows the parameters file, but the torques are the
+        # raw measured ones, every sample is used and rest is kept unless asked otherwise
+        for key, default in (("trim_rest", trim_default), ("torque_filter_hz", None), ("decimate", 1)):
+            if getattr(args, key, None) is None:
+                changes[key] = default
+    return replace(cfg, **changes)
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    from urident.logs import add_log_arguments
+
+    p = subparsers.add_parser(
+        "identify", help="identify dynamic parameters from logs",
+        description="Identify base parameters (paper eq. 19-21) from one or more logs. With "
+                    "--method all, --out receives the consistent estimate and PARAMS.ols.yaml / "
+                    "PARAMS.bounded.yaml the others; a comparison table goes to stdout.")
+    p.add_argument("logs", nargs="+", metavar="LOG", help="log files (urident, ur_rtde or --format preset)")
+    p.add_argument("--robot", required=True, help="robot name (ur5, ur5e, ur10e) or robot file")
+    p.add_argument("--out", required=True, metavar="PARAMS.yaml", help="parameters file to write")
+    p.add_argument("--method", choices=("ols", "bounded", "consistent", "all"), default="ols",
+                   help="estimation method (default ols, the paper's pseudo-inverse)")
+    p.add_argument("--urdf", metavar="OUT", default=None,
+                   help="also write a URDF of the physically consistent estimate")
+    p.add_argument("--report", metavar="FILE", default=None, help="also write the comparison table here")
+    p.add_argument("--png", metavar="DIR", default=None,
+                   help="write fit plots (measured vs predicted, base parameters) as PNG here")
+    add_model_arguments(p)
+    add_preprocess_arguments(p, trim_default=True)
+    add_log_arguments(p)
+    p.set_defaults(func=run)
+
+
+def model_config(args: argparse.Namespace):
+    from urident.ident import ModelConfig
+
+    extras = tuple(x.strip() for x in (args.friction_extra or "").split(",") if x.strip())
+    return ModelConfig(reduced=args.reduced, friction_eps=args.friction_eps, coulomb=args.coulomb,
+                       dahl_rad=args.dahl_rad, hold_velocity=args.hold_velocity, extras=extras, stribeck_vs=args.stribeck_vs)
+
+
+def sibling(path: Path, method: str) -> Path:
+    return path.with_name(f"{path.stem}.{method}{path.suffix or '.yaml'}")
+
+
+def run(args: argparse.Namespace) -> int:
+    from urident.errors import ConfigError
+    from urident.ident import identify_all, prepare, save_params
+    from urident.ident.estimate_consistent import DEFAULT_REGULARISATION
+    from urident.ident.report import comparison_report
+    from urident.ident.torque import resolve_drive_gains
+    from urident.logs import load_log_from_args
+    from urident.model import load_robot
+
+    spec = load_robot(args.robot)
+    model = model_config(args)
+    config = preprocess_config(args)
+    gains = resolve_drive_gains(spec, args.drive_gains)
+    recordings = [load_log_from_args(path, args, robot=spec.name) for path in args.logs]
+    data = prepare(recordings, spec, config, gains)
+    methods = ("ols", "bounded", "consistent") if args.method == "all" else (args.method,)
+    if args.urdf and "consistent" not in methods:
+        raise ConfigError("--urdf needs physically consistent parameters: use --method consistent or all")
+    reg = DEFAULT_REGULARISATION if args.regularisation is None else args.regularisation
+    models = identify_all(spec, data, methods, model, args.weighting, reg, config)
+    out = Path(args.out)
+    primary = "consistent" if args.method == "all" else args.method
+    save_params(models[primary], out)
+    written = [str(out)]
+    for m in methods:
+        if m != primary:
+            save_params(models[m], sibling(out, m))
+            written.append(str(sibling(out, m)))
+    text = comparison_report(models)
+    print(text)
+    if args.report:
+        Path(args.report).write_text(text + "\n")
+    if args.urdf:
+        from urident.ident.urdf import write_urdf
+
+        write_urdf(spec, models["consistent"].standard, args.urdf)
+        written.append(args.urdf)
+    if args.png:
+        from urident.ident import validate
+        from urident.viz.plots import plot_base_parameters, plot_torques
+
+        png = Path(args.png)
+        png.mkdir(parents=True, exist_ok=True)
+        for m, mod in models.items():
+            written.append(str(plot_torques(validate(mod, spec, data), png / f"fit_{m}.png")))
+        written.append(str(plot_base_parameters(models, png / "base_parameters.png")))
+    print("wrote " + ", ".join(written), file=sys.stderr)
+    return 0

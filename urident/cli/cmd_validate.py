@@ -1,0 +1,76 @@
+"""``urident validate``: predict the torques of other logs with identified parameters."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    from urident.cli.cmd_identify import add_preprocess_arguments
+    from urident.logs import add_log_arguments
+
+    p = subparsers.add_parser(
+        "validate", help="validate identified parameters on other logs",
+        description="Predict the joint torques of LOG(s) with PARAMS.yaml and report the paper's "
+                    "normalised error e_N (eq. 22), per-joint RMS [N·m] and relative error rre [%]. "
+                    "Preprocessing follows the parameters file (rest trimming off unless asked); "
+                    "give --params several times to compare methods.")
+    p.add_argument("logs", nargs="+", metavar="LOG")
+    p.add_argument("--params", action="append", required=True, metavar="PARAMS.yaml",
+                   help="parameters file from urident identify (repeatable)")
+    p.add_argument("--robot", default=None, help="robot (default: the parameters file's)")
+    p.add_argument("--json-out", metavar="FILE", default=None, help="write the metrics as JSON")
+    p.add_argument("--png", metavar="DIR", default=None, help="write measured-vs-predicted plots here")
+    add_preprocess_arguments(p, trim_default=False)
+    add_log_arguments(p)
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from urident.cli.cmd_identify import preprocess_config
+    from urident.errors import ConfigError
+    from urident.ident import load_params, prepare, validate
+    from urident.ident.torque import resolve_drive_gains
+    from urident.logs import load_log_from_args
+    from urident.model import load_robot
+
+    models = [(path, load_params(path)) for path in args.params]
+    robot = args.robot or models[0][1].robot
+    spec = load_robot(robot)
+    for path, m in models:
+        if m.robot != spec.name:
+            raise ConfigError(f"{path}: parameters are for robot {m.robot!r}, validating on {spec.name!r}")
+    recordings = [load_log_from_args(p, args, robot=spec.name) for p in args.logs]
+    results = []
+    for path, m in models:
+        config = preprocess_config(args, base=m.preprocess, trim_default=False)
+        gains = resolve_drive_gains(spec, args.drive_gains if args.drive_gains else m.drive_gains)
+        data = prepare(recordings, spec, config, gains)
+        from urident.ident.identify import check_compatible
+
+        check_compatible(m, spec, str(path))
+        results.append((path, validate(m, spec, data)))
+    for path, r in results:
+        print(f"{path} ({r.method}, {r.n_samples} samples): e_N = {r.e_n:.4f}, "
+              f"mean RMS {r.mean_rms_nm:.3f} N·m")
+        print("  rms_nm  " + " ".join(f"{v:6.2f}" for v in r.rms_nm))
+        print("  rre_pct " + " ".join(f"{v:6.1f}" for v in r.rre_pct))
+    if args.json_out:
+        payload = dict(results[0][1].as_dict(), params=str(results[0][0]))
+        if len(results) > 1:
+            payload["results"] = [dict(r.as_dict(), params=str(p)) for p, r in results]
+        Path(args.json_out).write_text(json.dumps(payload, indent=2) + "\n")
+    if args.png:
+        from urident.viz.plots import plot_torques
+
+        out = Path(args.png)
+        out.mkdir(parents=True, exist_ok=True)
+        for k, (path, r) in enumerate(results):
+            png = plot_torques(r, out / f"validation_{Path(path).stem}.png",
+                               title=f"{Path(path).name} ({r.method}): e_N = {r.e_n:.4f}, "
+                                     f"mean RMS {r.mean_rms_nm:.2f} N·m")
+            print(f"wrote {png}", file=sys.stderr)
+    return 0

@@ -1,0 +1,144 @@
+"""The identification model: which base parameters and friction features, and its regressor.
+
+``ModelConfig`` fixes everything the regressor depends on (the paper's reduced or full base set, the
+tanh slope ε, the Coulomb model and extra friction features). ``design_matrix`` returns the stacked
+(6N, n) matrix, row 6k + j, whose first ``b`` columns are the base-parameter columns Θ_B of the
+paper and the rest the extra friction columns of :mod:`urident.ident.friction`.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from urident.errors import ConfigError
+from urident.ident.friction import (COULOMB_MODELS, EXTRA_FEATURES, EXTRA_PREFIX, NONNEGATIVE_EXTRAS,
+                                    dahl_state, hold_state, stribeck)
+from urident.model.parameters import COULOMB_OFFSET, parameter_names
+
+_NONNEG_STANDARD_PREFIX = ("m", "A", "B", "C", "IM", "fv", "fc")
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """What is identified. Defaults are the paper's: full base set, tanh Coulomb, ε = 0.01 rad/s."""
+
+    reduced: bool = False           # the paper's reduced model (33 base parameters) or full (52)
+    friction_eps: float = 0.01      # [rad/s] tanh slope
+    coulomb: str = "tanh"           # 'tanh' (paper), 'dahl' or 'hold' (history-driven, friction.py)
+    dahl_rad: float = 0.01          # [rad] Dahl presliding distance δ
+    hold_velocity: float = 3e-4     # [rad/s] 'hold': |q̇| needed to reverse the friction state
+    extras: tuple[str, ...] = ()    # extra friction features: offset, stribeck, dahl
+    stribeck_vs: float = 0.05       # [rad/s] Stribeck velocity
+
+    def __post_init__(self) -> None:
+        if not self.friction_eps > 0:
+            raise ConfigError(f"friction_eps must be positive, not {self.friction_eps}")
+        if self.coulomb not in COULOMB_MODELS:
+            raise ConfigError(f"coulomb model {self.coulomb!r} unknown (known: {', '.join(COULOMB_MODELS)})")
+        object.__setattr__(self, "extras", tuple(self.extras))
+        for x in self.extras:
+            if x not in EXTRA_FEATURES:
+                raise ConfigError(f"friction feature {x!r} unknown (known: {', '.join(EXTRA_FEATURES)})")
+        if len(set(self.extras)) != len(self.extras):
+            raise ConfigError(f"friction features repeated: {', '.join(self.extras)}")
+        if not (self.dahl_rad > 0 and self.stribeck_vs > 0 and self.hold_velocity > 0):
+            raise ConfigError("dahl_rad, stribeck_vs and hold_velocity must be positive")
+
+    def as_dict(self) -> dict:
+        d = asdict(self)
+        d["extras"] = list(self.extras)
+        return d
+
+    @classmethod
+    def from_dict(cls, data: dict, where: str = "model") -> "ModelConfig":
+        allowed = set(cls.__dataclass_fields__)
+        unknown = sorted(set(data) - allowed)
+        if unknown:
+            raise ConfigError(f"{where}: unknown key '{unknown[0]}' (allowed: {', '.join(sorted(allowed))})")
+        kw = dict(data)
+        if "extras" in kw:
+            kw["extras"] = tuple(kw["extras"] or ())
+        return cls(**kw)
+
+
+@functools.lru_cache(maxsize=16)
+def _base_cached(source: str, name: str, reduced: bool):
+    from urident.model import load_robot
+    from urident.model.base import base_parameters
+
+    return base_parameters(load_robot(source), reduced)
+
+
+def base_for(spec, reduced: bool):
+    """Base parameters of ``spec`` (cached per robot file)."""
+    return _base_cached(str(spec.source), spec.name, bool(reduced))
+
+
+def column_names(spec, config: ModelConfig) -> list[str]:
+    base = base_for(spec, config.reduced)
+    names = list(base.names)
+    for x in config.extras:
+        names += [f"{EXTRA_PREFIX[x]}{j + 1}" for j in range(6)]
+    return names
+
+
+def column_expressions(spec, config: ModelConfig) -> list[str]:
+    base = base_for(spec, config.reduced)
+    expr = list(base.expressions())
+    desc = {"offset": "constant torque offset", "stribeck": "Stribeck term tanh(qd/eps)*exp(-(qd/vs)^2)",
+            "dahl": "Dahl hysteresis state"}
+    for x in config.extras:
+        expr += [f"{desc[x]} of joint {j + 1}" for j in range(6)]
+    return expr
+
+
+def nonnegative_mask(spec, config: ModelConfig) -> np.ndarray:
+    """Columns whose coefficient must be ≥ 0 physically: base parameters that are a positive
+    combination of masses, diagonal inertias about the joint frame (A, B, C), rotor inertias and
+    friction coefficients only; and the Stribeck and Dahl extras."""
+    base = base_for(spec, config.reduced)
+    names = parameter_names()
+    nonneg_std = np.array([n.startswith(_NONNEG_STANDARD_PREFIX) and not n.startswith("mr") for n in names])
+    mask = []
+    for row in base.combination:
+        nz = np.flatnonzero(np.abs(row) > 1e-12)
+        mask.append(bool(np.all(nonneg_std[nz]) and np.all(row[nz] > 0)))
+    for x in config.extras:
+        mask += [x in NONNEGATIVE_EXTRAS] * 6
+    return np.array(mask)
+
+
+def design_blocks(spec, config: ModelConfig, q, qd, qdd, segment=None) -> np.ndarray:
+    """(N, 6, n) regressor of the identification model (see module doc)."""
+    from urident.model import regressor_blocks
+
+    base = base_for(spec, config.reduced)
+    blocks = regressor_blocks(spec, q, qd, qdd, config.friction_eps)
+    joints = np.arange(6)
+    if config.coulomb == "dahl":
+        blocks[:, joints, COULOMB_OFFSET + joints] = dahl_state(q, config.dahl_rad, segment)
+    elif config.coulomb == "hold":
+        blocks[:, joints, COULOMB_OFFSET + joints] = hold_state(qd, config.friction_eps,
+                                                                config.hold_velocity, segment)
+    out = [blocks[:, :, base.independent]]
+    n = blocks.shape[0]
+    for x in config.extras:
+        extra = np.zeros((n, 6, 6))
+        if x == "offset":
+            values = np.ones((n, 6))
+        elif x == "stribeck":
+            values = stribeck(qd, config.friction_eps, config.stribeck_vs)
+        else:
+            values = dahl_state(q, config.dahl_rad, segment)
+        extra[:, joints, joints] = values
+        out.append(extra)
+    return np.concatenate(out, axis=2)
+
+
+def design_matrix(spec, config: ModelConfig, q, qd, qdd, segment=None) -> np.ndarray:
+    """Stacked (6N, n) regressor, row 6k + j."""
+    blocks = design_blocks(spec, config, q, qd, qdd, segment)
+    return blocks.reshape(-1, blocks.shape[2])

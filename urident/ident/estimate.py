@@ -1,0 +1,70 @@
+"""The result of one estimation method and the statistics shared by all methods.
+
+Standard deviations follow the paper's eq. (21), σ_i = sqrt(((Θ_Bᵀ Θ_B)⁻¹)_ii), *scaled by the
+noise variance* σ² = ‖e‖² / (r − n) estimated from the residual e, where r = 6m is the number of
+rows of the stacked regressor (m time samples) and n the number of estimated parameters (eq. 21
+as printed assumes unit noise variance). With per-joint weighting the rows are divided by the
+joint's residual standard deviation first, so σ² is the weighted residual variance (≈ 1).
+For the bounded and consistent methods the same covariance is evaluated at their solution; it
+ignores active constraints (an upper estimate of the uncertainty there).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """Parameters of the identification model estimated by one method."""
+
+    method: str
+    names: tuple[str, ...]
+    values: np.ndarray          # (n,) base parameters followed by the extra friction coefficients
+    sigma: np.ndarray           # (n,) standard deviations (module doc)
+    noise_var: float            # σ² of the (weighted) residual
+    weights: np.ndarray         # (6,) per-joint row weights used (ones for plain LS)
+    train_rms: np.ndarray       # (6,) per-joint RMS of the unweighted training residual [N·m]
+    train_e_n: float            # eq. (22) on the training data
+    standard: np.ndarray | None = None   # 78-vector (consistent method only)
+    info: dict | None = None
+
+    @property
+    def relative_sigma_pct(self) -> np.ndarray:
+        """100·σ/|p| per parameter (inf where p = 0)."""
+        with np.errstate(divide="ignore"):
+            return 100.0 * self.sigma / np.abs(self.values)
+
+
+def row_weights(weights: np.ndarray, n_samples: int) -> np.ndarray:
+    return np.tile(np.asarray(weights, dtype=float), n_samples)
+
+
+def statistics(w: np.ndarray, y: np.ndarray, x: np.ndarray, weights: np.ndarray) -> dict:
+    """σ, σ², training RMS and e_N of parameters ``x`` on stacked (w, y) (unweighted inputs)."""
+    n_samples = len(y) // 6
+    rw = row_weights(weights, n_samples)
+    e = w @ x - y
+    ew = e * rw
+    dof = max(len(y) - w.shape[1], 1)
+    noise_var = float(ew @ ew / dof)
+    ww = w * rw[:, None]
+    # (ΘᵀΘ)⁻¹ through a column-scaled SVD-based pseudo-inverse (robust to poor conditioning)
+    scale = np.linalg.norm(ww, axis=0)
+    scale[scale == 0] = 1.0
+    gram_inv = np.linalg.pinv((ww / scale).T @ (ww / scale)) / np.outer(scale, scale)
+    sigma = np.sqrt(np.clip(np.diag(gram_inv), 0, None) * noise_var)
+    e2 = e.reshape(-1, 6)
+    return {"sigma": sigma, "noise_var": noise_var,
+            "train_rms": np.sqrt(np.mean(e2 ** 2, axis=0)),
+            "train_e_n": float(np.linalg.norm(e) / n_samples)}
+
+
+def joint_weights(w: np.ndarray, y: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Per-joint weights 1/std of the residual of a first (unweighted) fit."""
+    e = (w @ x - y).reshape(-1, 6)
+    std = np.sqrt(np.mean(e ** 2, axis=0))
+    std = np.maximum(std, 1e-9 * max(std.max(), 1e-300))
+    return 1.0 / std

@@ -1,0 +1,87 @@
+"""Friction features beyond the paper's r_v·q̇ + r_c·tanh(q̇/ε).
+
+All are linear in their coefficients, so they enter the regressor as extra columns (or replace the
+Coulomb column), one per joint:
+
+* ``tanh`` (paper): sign(q̇) ≈ tanh(q̇/ε).
+* ``dahl``: a presliding/hysteresis state z ∈ [−1, 1] driven by the joint's motion history,
+  dz/dq = (1 − z·sign(q̇))/δ (Dahl's model, normalised by the Coulomb level). While the joint moves
+  z → sign(q̇) within a few δ of travel, like tanh; when it stops, z *keeps* the value it had, so
+  the friction torque at standstill depends on the direction of the last motion, not on the sign of
+  the (noisy, tiny) filtered velocity. Exact update for a step Δq of constant sign s:
+  z ← s + (z − s)·exp(−|Δq|/δ). State starts at 0 at the beginning of each segment.
+* ``hold``: a velocity-driven friction state with memory. z follows tanh(q̇/ε) whenever that moves
+  it *away* from zero (|tanh(q̇/ε)| > |z|, same sign) or across zero with |q̇| ≥ v_h (a real reversal,
+  not velocity noise); otherwise z keeps its value. In motion it equals the paper's tanh except just
+  before a reversal (where it stays saturated: the joint is still sliding); when the joint
+  decelerates to a stop it keeps the full friction of the last motion direction (the holding
+  current of a harmonic drive stopped after sliding, presliding memory as in Dahl/LuGre) instead
+  of dropping to tanh(≈0) = 0. v_h is a few times the standstill velocity noise.
+* ``offset``: a constant per joint (asymmetric Coulomb friction, current-sensor bias, unmodelled
+  static load); name ``fo<j>``.
+* ``stribeck``: tanh(q̇/ε)·exp(−(q̇/v_s)²), the extra static friction near zero speed; ``fs<j>``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+COULOMB_MODELS = ("tanh", "dahl", "hold")
+EXTRA_FEATURES = ("offset", "stribeck", "dahl")
+EXTRA_PREFIX = {"offset": "fo", "stribeck": "fs", "dahl": "fh"}
+NONNEGATIVE_EXTRAS = frozenset({"stribeck", "dahl"})
+
+
+def dahl_state(q: np.ndarray, delta: float, segment: np.ndarray | None = None) -> np.ndarray:
+    """(N, 6) normalised Dahl state from (N, 6) positions; reset to 0 where ``segment`` changes."""
+    q = np.asarray(q, dtype=float)
+    n = q.shape[0]
+    z = np.zeros_like(q)
+    dq = np.diff(q, axis=0)
+    s = np.sign(dq)
+    decay = np.exp(-np.abs(dq) / delta)
+    new_seg = np.zeros(n, dtype=bool) if segment is None else np.r_[False, np.diff(segment) != 0]
+    cur = np.zeros(q.shape[1])
+    for k in range(1, n):
+        if new_seg[k]:
+            cur = np.zeros(q.shape[1])
+        else:
+            cur = s[k - 1] + (cur - s[k - 1]) * decay[k - 1]
+        z[k] = cur
+    return z
+
+
+def stribeck(qd: np.ndarray, eps: float, vs: float) -> np.ndarray:
+    qd = np.asarray(qd, dtype=float)
+    return np.tanh(qd / eps) * np.exp(-(qd / vs) ** 2)
+
+
+def hold_state(qd: np.ndarray, eps: float, v_hold: float, segment: np.ndarray | None = None) -> np.ndarray:
+    """(N, 6) friction state of the ``hold`` model (module doc); starts at tanh(q̇₀/ε) per segment."""
+    qd = np.asarray(qd, dtype=float)
+    target = np.tanh(qd / eps)
+    reverse_ok = np.abs(qd) >= v_hold
+    starts = np.zeros(len(qd), dtype=bool)
+    starts[0] = True
+    if segment is not None:
+        starts[1:] |= np.diff(segment) != 0
+    z = np.empty_like(target)
+    cur = target[0].copy()
+    for k in range(len(qd)):
+        if starts[k]:
+            cur = target[k].copy()
+        else:
+            t = target[k]
+            same = np.sign(t) == np.sign(cur)
+            grow = same & (np.abs(t) > np.abs(cur))
+            flip = ~same & reverse_ok[k]
+            cur = np.where(grow | flip, t, cur)
+        z[k] = cur
+    return z
+
+
+def standstill_velocity_noise(qd: np.ndarray, threshold: float = 1e-3) -> float:
+    """Std of q̇ over samples where every |q̇_j| < threshold (the log's rest), or nan if none."""
+    qd = np.asarray(qd, dtype=float)
+    rest = np.all(np.abs(qd) < threshold, axis=1)
+    return float(np.std(qd[rest])) if rest.sum() > 10 else float("nan")

@@ -1,0 +1,132 @@
+"""High-level identification: prepared data → :class:`IdentifiedModel`, and prediction from it.
+
+    spec = load_robot("ur10e")
+    data = prepare([load_log(path, robot="ur10e", rows=(635, 3510), format="dynamic_calibration")], spec)
+    models = identify_all(spec, data, ("ols", "bounded", "consistent"))
+    tau_hat = predict(models["ols"], spec, q, qd, qdd)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Iterable, Sequence
+
+import numpy as np
+
+from urident.errors import ConfigError
+from urident.ident.design import (ModelConfig, base_for, column_expressions, column_names, design_matrix,
+                                  nonnegative_mask)
+from urident.ident.estimate import Estimate
+from urident.ident.estimate_bounded import estimate_bounded
+from urident.ident.estimate_consistent import DEFAULT_REGULARISATION, estimate_consistent
+from urident.ident.estimate_ols import estimate_ols
+from urident.ident.preprocess import PreprocessConfig, Prepared, Provenance, concatenate, preprocess
+
+METHODS = ("ols", "bounded", "consistent")
+
+
+@dataclass(frozen=True)
+class IdentifiedModel:
+    """Everything needed to predict torques and to write a parameters file."""
+
+    robot: str
+    method: str
+    model: ModelConfig
+    names: tuple[str, ...]
+    expressions: tuple[str, ...]
+    values: np.ndarray            # base parameters (+ extra friction coefficients)
+    sigma: np.ndarray
+    drive_gains: np.ndarray
+    preprocess: PreprocessConfig = field(default_factory=PreprocessConfig)
+    weighting: str = "none"
+    standard: np.ndarray | None = None     # physically consistent 78-vector (consistent method)
+    provenance: tuple[Provenance, ...] = ()
+    n_samples: int = 0
+    noise_var: float = float("nan")
+    train_rms: np.ndarray | None = None
+    train_e_n: float = float("nan")
+    info: dict | None = None
+
+    @property
+    def relative_sigma_pct(self) -> np.ndarray:
+        with np.errstate(divide="ignore"):
+            return 100.0 * self.sigma / np.abs(self.values)
+
+
+def prepare(recordings: Iterable, spec, config: PreprocessConfig | None = None,
+            drive_gains=None) -> Prepared:
+    """Preprocess and concatenate recordings (each filtered on its own)."""
+    return concatenate([preprocess(r, spec, config, drive_gains) for r in recordings])
+
+
+def _as_prepared(data) -> Prepared:
+    if isinstance(data, Prepared):
+        return data
+    return concatenate(list(data))
+
+
+def _wrap(spec, est: Estimate, model: ModelConfig, data: Prepared, weighting: str,
+          config: PreprocessConfig | None) -> IdentifiedModel:
+    return IdentifiedModel(
+        robot=spec.name, method=est.method, model=model, names=est.names,
+        expressions=tuple(column_expressions(spec, model)), values=est.values, sigma=est.sigma,
+        drive_gains=np.asarray(data.drive_gains, float), preprocess=config or PreprocessConfig(),
+        weighting=weighting, standard=est.standard, provenance=data.provenance,
+        n_samples=len(data), noise_var=est.noise_var, train_rms=est.train_rms,
+        train_e_n=est.train_e_n, info=est.info)
+
+
+def identify_all(spec, data: Prepared | Sequence[Prepared], methods: Sequence[str] = METHODS,
+                 model: ModelConfig | None = None, weighting: str = "none",
+                 regularisation: float = DEFAULT_REGULARISATION,
+                 preprocess_config: PreprocessConfig | None = None) -> dict[str, IdentifiedModel]:
+    """Run several methods on the same data (one regressor). ``preprocess_config`` is only recorded."""
+    model = model or ModelConfig()
+    data = _as_prepared(data)
+    for m in methods:
+        if m not in METHODS:
+            raise ConfigError(f"method {m!r} unknown (known: {', '.join(METHODS)}, all)")
+    w = design_matrix(spec, model, data.q, data.qd, data.qdd, data.segment)
+    y = data.tau.reshape(-1)
+    names = column_names(spec, model)
+    out = {}
+    for m in methods:
+        if m == "ols":
+            est = estimate_ols(w, y, names, weighting)
+        elif m == "bounded":
+            est = estimate_bounded(w, y, names, nonnegative_mask(spec, model), weighting)
+        else:
+            b = base_for(spec, model.reduced)
+            nb = b.n_base
+            est = estimate_consistent(w, y, names, b.combination, spec.nominal_params,
+                                      nonnegative_mask(spec, model)[nb:], weighting, regularisation)
+        out[m] = _wrap(spec, est, model, data, weighting, preprocess_config)
+    return out
+
+
+def identify(spec, data: Prepared | Sequence[Prepared], method: str = "ols",
+             model: ModelConfig | None = None, weighting: str = "none",
+             regularisation: float = DEFAULT_REGULARISATION,
+             preprocess_config: PreprocessConfig | None = None) -> IdentifiedModel:
+    """One method (``ols``, ``bounded`` or ``consistent``) on prepared data."""
+    return identify_all(spec, data, (method,), model, weighting, regularisation, preprocess_config)[method]
+
+
+def check_compatible(identified: IdentifiedModel, spec, where: str = "parameters") -> None:
+    if identified.robot != spec.name:
+        raise ConfigError(f"{where}: identified for robot {identified.robot!r}, not {spec.name!r}")
+    names = tuple(column_names(spec, identified.model))
+    if names != tuple(identified.names):
+        raise ConfigError(f"{where}: parameter names do not match the {spec.name} model "
+                          f"({'reduced' if identified.model.reduced else 'full'} base set)")
+
+
+def predict(identified: IdentifiedModel, spec, q, qd, qdd, segment=None) -> np.ndarray:
+    """(N, 6) predicted joint torques [N·m] at states (q, q̇, q̈) (N, 6)."""
+    check_compatible(identified, spec)
+    w = design_matrix(spec, identified.model, q, qd, qdd, segment)
+    return (w @ identified.values).reshape(-1, 6)
+
+
+def predict_prepared(identified: IdentifiedModel, spec, data: Prepared) -> np.ndarray:
+    return predict(identified, spec, data.q, data.qd, data.qdd, data.segment)

@@ -1,0 +1,251 @@
+"""Preprocessing of a recording for identification: accelerations, torques, trimming, decimation.
+
+Accelerations (paper eq. 46). The paper filters with y = s/(s/w + 1)·u, w = 2πf, and Matlab's
+``filtfilt``. Running ``filtfilt`` on that differentiator directly does *not* give a derivative:
+the backward pass differentiates the time-reversed signal, so the result is −d²/dt² of the input
+(on q̇ it would be minus the jerk). We therefore split the filter as s · L(s) with the low-pass
+L(s) = 1/(s/w + 1): L is discretised by the bilinear transform (corner pre-warped so it stays at f)
+at the log's median rate and run forward and backward (``scipy.signal.filtfilt``, zero phase,
+magnitude |L|²), then the derivative s is taken by central differences on the *actual* timestamps
+(``numpy.gradient(v, t)``), which is also zero phase.
+
+Jittery timestamps (the UR10e logs: 100 Hz, 2–34 ms jitter). The timestamps are the true sample
+times: on those logs ``gradient(q, t_actual)`` matches the controller's q̇ ten times better (RMS
+0.004 rad/s) than a uniform grid does (0.04 rad/s). Filtering in sample index on a jittery grid turns
+the jitter into noise (each output becomes an average over a randomly shifted time window), so when
+the steps deviate from their median by more than 1 %, the signal is interpolated (linearly) onto a
+uniform grid at the median rate, filtered and differentiated there, and the result interpolated
+back to the original sample times. The sample set is therefore unchanged (the reference figures are
+defined on it), and with a uniform log the grid is the log itself.
+
+Torques: τ = drive_gains · current (see :mod:`urident.ident.torque`), optionally low-passed with
+the same zero-phase L (``torque_filter_hz``). Rest trimming drops leading and trailing samples where
+every |q̇_j| is below ``rest_threshold``; decimation keeps every k-th sample after filtering.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+import scipy.signal
+
+from urident.errors import ConfigError, LogFormatError
+
+MIN_SAMPLES = 20
+
+
+@dataclass(frozen=True)
+class PreprocessConfig:
+    """Options of :func:`preprocess` (SI units)."""
+
+    filter_hz: float = 10.0                 # corner of the paper's filter (accelerations)
+    torque_filter_hz: float | None = None   # zero-phase low-pass of the torques (None: off)
+    decimate: int = 1                       # keep every k-th sample after filtering
+    trim_rest: bool = True                  # drop leading/trailing samples at rest
+    rest_threshold: float = 1e-3            # [rad/s] "at rest": all |q̇_j| below this
+    prewarp: bool = True                    # bilinear transform with the corner pre-warped
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.filter_hz) and self.filter_hz > 0):
+            raise ConfigError(f"filter_hz must be positive, not {self.filter_hz}")
+        if self.torque_filter_hz is not None and not self.torque_filter_hz > 0:
+            raise ConfigError(f"torque_filter_hz must be positive, not {self.torque_filter_hz}")
+        if int(self.decimate) != self.decimate or self.decimate < 1:
+            raise ConfigError(f"decimate must be a positive integer, not {self.decimate}")
+        if not self.rest_threshold >= 0:
+            raise ConfigError(f"rest_threshold must not be negative, not {self.rest_threshold}")
+
+
+@dataclass(frozen=True)
+class Provenance:
+    """Where a prepared data set came from."""
+
+    file: str
+    rows: tuple[int, int] | None
+    sha256: str | None
+    samples_used: tuple[int, int]   # [first, last) indices into the loaded recording
+
+    def as_dict(self) -> dict:
+        return {"file": self.file, "rows": None if self.rows is None else list(self.rows),
+                "sha256": self.sha256, "samples_used": list(self.samples_used)}
+
+
+@dataclass(frozen=True)
+class Prepared:
+    """Identification-ready data: ``t (N,)``, ``q, qd, qdd, tau (N, 6)`` float64, SI units.
+    ``segment (N,)`` numbers the contiguous pieces (one per log) so that concatenated logs are
+    never differentiated or filtered across a seam."""
+
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    tau: np.ndarray
+    drive_gains: np.ndarray
+    provenance: tuple[Provenance, ...] = ()
+    segment: np.ndarray = field(default=None)  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        if self.segment is None:
+            object.__setattr__(self, "segment", np.zeros(len(self.t), dtype=int))
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+    @property
+    def n_samples(self) -> int:
+        return len(self)
+
+    def select(self, index) -> "Prepared":
+        return replace(self, t=self.t[index], q=self.q[index], qd=self.qd[index],
+                       qdd=self.qdd[index], tau=self.tau[index], segment=self.segment[index])
+
+
+def lowpass_coefficients(cutoff_hz: float, fs: float, prewarp: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """(b, a) of L(s) = 1/(s/w + 1), w = 2π·cutoff, by the bilinear transform at rate ``fs``."""
+    if not cutoff_hz < fs / 2:
+        raise ConfigError(f"filter corner {cutoff_hz} Hz must be below the Nyquist frequency "
+                          f"{fs / 2:g} Hz of the log")
+    w = 2 * np.pi * cutoff_hz
+    if prewarp:
+        w = 2 * fs * np.tan(w / (2 * fs))
+    b, a = scipy.signal.bilinear([1.0], [1.0 / w, 1.0], fs)
+    return np.asarray(b), np.asarray(a)
+
+
+def sample_rate(t: np.ndarray) -> float:
+    """Median sample rate [Hz] of timestamps ``t``."""
+    dt = np.diff(np.asarray(t, dtype=float))
+    if dt.size == 0 or not np.all(dt > 0):
+        raise LogFormatError("timestamps must be strictly increasing")
+    return float(1.0 / np.median(dt))
+
+
+def zero_phase_lowpass(x: np.ndarray, fs: float, cutoff_hz: float, prewarp: bool = True) -> np.ndarray:
+    """``filtfilt`` of L(s) along axis 0 of uniformly sampled ``x`` (magnitude |L|², zero phase)."""
+    b, a = lowpass_coefficients(cutoff_hz, fs, prewarp)
+    return scipy.signal.filtfilt(b, a, np.asarray(x, dtype=float), axis=0)
+
+
+def _uniform_grid(t: np.ndarray) -> np.ndarray | None:
+    """A uniform grid at the median rate covering ``t``, or None when ``t`` is uniform within 1 %."""
+    dt = np.diff(t)
+    med = float(np.median(dt))
+    if np.max(np.abs(dt / med - 1.0)) <= 0.01:
+        return None
+    n = int(np.floor((t[-1] - t[0]) / med + 1e-9)) + 1
+    return t[0] + med * np.arange(n)
+
+
+def _interp(t_new: np.ndarray, t: np.ndarray, x: np.ndarray) -> np.ndarray:
+    return np.stack([np.interp(t_new, t, x[:, j]) for j in range(x.shape[1])], axis=1)
+
+
+def lowpass_t(t: np.ndarray, x: np.ndarray, cutoff_hz: float, prewarp: bool = True) -> np.ndarray:
+    """Zero-phase low-pass of (N, k) samples at times ``t`` (jitter handled, module doc)."""
+    t = np.asarray(t, dtype=float)
+    x = np.asarray(x, dtype=float)
+    fs = sample_rate(t)
+    grid = _uniform_grid(t)
+    if grid is None:
+        return zero_phase_lowpass(x, fs, cutoff_hz, prewarp)
+    return _interp(t, grid, zero_phase_lowpass(_interp(grid, t, x), fs, cutoff_hz, prewarp))
+
+
+def accelerations(t: np.ndarray, qd: np.ndarray, filter_hz: float = 10.0, prewarp: bool = True) -> np.ndarray:
+    """(N, 6) accelerations: zero-phase version of the paper's s/(s/w + 1) applied to q̇ (module doc)."""
+    t = np.asarray(t, dtype=float)
+    qd = np.asarray(qd, dtype=float)
+    if len(t) < MIN_SAMPLES:
+        raise LogFormatError(f"need at least {MIN_SAMPLES} samples to filter, got {len(t)}")
+    fs = sample_rate(t)
+    grid = _uniform_grid(t)
+    if grid is None:
+        return np.gradient(zero_phase_lowpass(qd, fs, filter_hz, prewarp), t, axis=0)
+    v = zero_phase_lowpass(_interp(grid, t, qd), fs, filter_hz, prewarp)
+    return _interp(t, grid, np.gradient(v, grid, axis=0))
+
+
+def rest_trim_range(qd: np.ndarray, threshold: float) -> tuple[int, int]:
+    """[first, last) of the samples between the first and the last one where some |q̇_j| ≥ threshold."""
+    moving = np.flatnonzero(np.any(np.abs(qd) >= threshold, axis=1))
+    if moving.size == 0:
+        return 0, 0
+    return int(moving[0]), int(moving[-1]) + 1
+
+
+def _sha256(path: Path | None) -> str | None:
+    if path is None or not Path(path).is_file():
+        return None
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _check_finite(name: str, x: np.ndarray, source: str) -> None:
+    bad = ~np.isfinite(x)
+    if bad.any():
+        row = int(np.argwhere(bad)[0][0])
+        raise LogFormatError(f"{source}: {name} holds NaN/inf (sample {row})")
+
+
+def preprocess(recording, spec, config: PreprocessConfig | None = None,
+               drive_gains: Sequence[float] | None = None, tau: np.ndarray | None = None) -> Prepared:
+    """One :class:`urident.logs.Recording` → :class:`Prepared`. Torques are the current times the
+    drive gains (the robot file's, or ``drive_gains``); pass ``tau`` (N, 6) to use measured joint
+    torques instead. The recording's ``robot`` must match ``spec``."""
+    from urident.ident.torque import resolve_drive_gains, torque_from_current
+
+    config = config or PreprocessConfig()
+    source = str(recording.source) if recording.source is not None else "<recording>"
+    if recording.robot is not None and recording.robot != spec.name:
+        raise ConfigError(f"{source}: recorded on robot {recording.robot!r}, identifying {spec.name!r}")
+    t = np.asarray(recording.t, dtype=float)
+    if len(t) < MIN_SAMPLES:
+        raise LogFormatError(f"{source}: {len(t)} samples, need at least {MIN_SAMPLES}")
+    for name in ("q", "qd", "current"):
+        _check_finite(name, getattr(recording, name), source)
+    gains = resolve_drive_gains(spec, drive_gains)
+    torque = torque_from_current(recording.current, gains) if tau is None else np.asarray(tau, float)
+    _check_finite("tau", torque, source)
+    qd = np.asarray(recording.qd, dtype=float)
+    try:
+        qdd = accelerations(t, qd, config.filter_hz, config.prewarp)
+        if config.torque_filter_hz is not None:
+            torque = lowpass_t(t, torque, config.torque_filter_hz, config.prewarp)
+    except LogFormatError as exc:
+        raise LogFormatError(f"{source}: {exc}") from None
+    first, last = (0, len(t))
+    if config.trim_rest:
+        first, last = rest_trim_range(qd, config.rest_threshold)
+        if last - first < MIN_SAMPLES:
+            raise LogFormatError(f"{source}: the robot hardly moves (fewer than {MIN_SAMPLES} samples "
+                                 f"with some |qd| >= {config.rest_threshold} rad/s)")
+    sl = slice(first, last, int(config.decimate))
+    rows = recording.metadata.get("rows") if hasattr(recording, "metadata") else None
+    prov = Provenance(source, None if rows is None else tuple(int(r) for r in rows),
+                      _sha256(recording.source), (first, last))
+    return Prepared(t[sl].copy(), np.asarray(recording.q, float)[sl].copy(), qd[sl].copy(),
+                    qdd[sl].copy(), torque[sl].copy(), gains, (prov,))
+
+
+def concatenate(parts: Sequence[Prepared]) -> Prepared:
+    """Several prepared logs as one data set (segments numbered in order)."""
+    if not parts:
+        raise ConfigError("no data to identify from")
+    if len(parts) == 1:
+        return parts[0]
+    gains = parts[0].drive_gains
+    for p in parts[1:]:
+        if not np.allclose(p.drive_gains, gains):
+            raise ConfigError("logs prepared with different drive gains cannot be combined")
+    seg = np.concatenate([np.full(len(p), k) for k, p in enumerate(parts)])
+    cat = lambda name: np.concatenate([getattr(p, name) for p in parts])  # noqa: E731
+    return Prepared(cat("t"), cat("q"), cat("qd"), cat("qdd"), cat("tau"), gains,
+                    tuple(pr for p in parts for pr in p.provenance), seg)

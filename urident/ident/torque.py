@@ -1,0 +1,129 @@
+"""Joint torques from motor currents, τ_i = i_G,i·k_i·I_i (paper section IV-C), and estimation of
+the drive gains i_G,i·k_i from two runs, with and without a known payload.
+
+Drive-gain estimation. Without payload K·I₀ = Θ_B(x₀)·p_B; with a payload of known mass, centre
+of mass (and optionally inertia) rigidly attached to the last body, K·I₁ = Θ_B(x₁)·p_B + τ_P(x₁),
+where τ_P = Θ_6(x₁)·Δp₆ is the payload's torque (Θ_6: the regressor columns of body 6, Δp₆ the
+payload's ten parameters about K_6). Both are linear in the unknowns (p_B, K): the stacked
+least-squares problem
+
+    [ Θ_B(x₀)  −diag(I₀) ] [p_B]   [   0    ]
+    [ Θ_B(x₁)  −diag(I₁) ] [ K ] = [ −τ_P(x₁) ]
+
+has a unique solution when both runs excite the base parameters and the payload torque is not
+negligible; the scale of K comes from the payload alone. Because the currents appear in the matrix,
+plain least squares is biased by their noise; the estimate is refined by instrumental variables
+(instruments: the currents predicted by the previous fit).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from urident.errors import ConfigError
+
+
+def parse_drive_gains(text: str) -> np.ndarray:
+    """``"10,10.7,8.46,9,9.48,10.1"`` → (6,) array; ConfigError naming ``--drive-gains``."""
+    try:
+        values = np.array([float(v) for v in str(text).split(",")], dtype=float)
+    except ValueError:
+        raise ConfigError(f"--drive-gains {text!r}: expected six comma-separated numbers") from None
+    if values.shape != (6,) or not np.all(np.isfinite(values)) or np.any(values <= 0):
+        raise ConfigError(f"--drive-gains {text!r}: expected six positive numbers [N·m/A]")
+    return values
+
+
+def resolve_drive_gains(spec, drive_gains: Sequence[float] | str | None = None) -> np.ndarray:
+    """The drive gains to use: ``drive_gains`` if given, else the robot file's ``gear·k``."""
+    if drive_gains is None:
+        return np.array(spec.drive_gains, dtype=float)
+    if isinstance(drive_gains, str):
+        return parse_drive_gains(drive_gains)
+    g = np.asarray(drive_gains, dtype=float)
+    if g.shape != (6,) or not np.all(np.isfinite(g)) or np.any(g <= 0):
+        raise ConfigError(f"drive gains must be six positive numbers, got {drive_gains!r}")
+    return g
+
+
+def torque_from_current(current: np.ndarray, drive_gains: np.ndarray) -> np.ndarray:
+    """(N, 6) joint torques [N·m] from (N, 6) motor currents [A]."""
+    return np.asarray(current, dtype=float) * np.asarray(drive_gains, dtype=float)
+
+
+@dataclass(frozen=True)
+class DriveGainEstimate:
+    gains: np.ndarray        # (6,) [N·m/A]
+    sigma: np.ndarray        # (6,) standard deviations
+    base_params: np.ndarray  # (b,) base parameters of the arm without payload
+
+
+def payload_params(mass: float, com: Sequence[float], inertia_com: np.ndarray | None = None) -> np.ndarray:
+    """Ten parameters (about K_6) of a payload of ``mass`` [kg] with centre of mass ``com`` [m] in K_6."""
+    from urident.model.parameters import body_params
+
+    if not mass > 0:
+        raise ConfigError(f"payload mass must be positive, not {mass}")
+    inertia = np.zeros((3, 3)) if inertia_com is None else np.asarray(inertia_com, dtype=float)
+    return body_params(float(mass), np.asarray(com, dtype=float), inertia)
+
+
+def payload_torque(spec, q, qd, qdd, payload: np.ndarray) -> np.ndarray:
+    """(N, 6) torque of a payload (ten parameters about K_6) on the joints."""
+    from urident.model import regressor_blocks
+
+    blocks = regressor_blocks(spec, q, qd, qdd)
+    return blocks[:, :, 50:60] @ np.asarray(payload, dtype=float)
+
+
+def estimate_drive_gains(spec, run_without, run_with, payload: np.ndarray,
+                         reduced: bool = False, friction_eps: float = 0.01) -> DriveGainEstimate:
+    """Drive gains from two runs (module doc). ``run_without``/``run_with`` are ``(q, qd, qdd,
+    current)`` tuples of (N, 6) arrays; ``payload`` the payload's ten parameters about K_6
+    (:func:`payload_params`)."""
+    from urident.model import regressor
+    from urident.model.base import base_parameters
+
+    base = base_parameters(spec, reduced)
+    b = base.n_base
+    wbs, currents, rhs = [], [], []
+    for k, run in enumerate((run_without, run_with)):
+        q, qd, qdd, current = (np.asarray(x, dtype=float) for x in run)
+        wbs.append(base.columns(regressor(spec, q, qd, qdd, friction_eps)))
+        currents.append(current)
+        rhs.append(np.zeros(current.size) if k == 0
+                   else -payload_torque(spec, q, qd, qdd, payload).reshape(-1))
+    y = np.concatenate(rhs)
+
+    def stacked(cur_list):
+        blocks = []
+        for wb, cur in zip(wbs, cur_list):
+            n = cur.shape[0]
+            diag = np.zeros((6 * n, 6))
+            diag[np.arange(6 * n), np.tile(np.arange(6), n)] = cur.reshape(-1)
+            blocks.append(np.hstack([wb, -diag]))
+        return np.vstack(blocks)
+
+    a = stacked(currents)
+    scale = np.linalg.norm(a, axis=0)
+    scale[scale == 0] = 1.0
+    x = np.linalg.lstsq(a / scale, y, rcond=None)[0] / scale
+    # The measured currents are noisy regressors (errors in variables), which biases plain least
+    # squares towards smaller gains. Instrumental variables fix it: the instruments are the same
+    # columns with the currents predicted by the first fit, uncorrelated with the noise.
+    for _ in range(2):
+        predicted = []
+        for k, (wb, cur) in enumerate(zip(wbs, currents)):
+            tau = (wb @ x[:b]).reshape(-1, 6) - (0 if k == 0 else rhs[1].reshape(-1, 6))
+            predicted.append(tau / x[b:])
+        z = stacked(predicted)
+        x = np.linalg.solve((z / scale).T @ (a / scale), (z / scale).T @ y) / scale
+    e = a @ x - y
+    dof = max(a.shape[0] - a.shape[1], 1)
+    zs, as_ = z / scale, a / scale
+    m = np.linalg.inv(zs.T @ as_)
+    cov = m @ (zs.T @ zs) @ m.T * (e @ e / dof) / np.outer(scale, scale)
+    return DriveGainEstimate(x[b:], np.sqrt(np.diag(cov))[b:], x[:b])

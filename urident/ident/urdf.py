@@ -1,0 +1,85 @@
+"""URDF export of a physically consistent identified model.
+
+Each link frame is the paper's joint frame K_i (joint origin = the robot file's fixed placement of
+K_i in K_{i−1}), the inertial origin is the centre of mass ρ = h/m and the inertia is taken about it
+(I_c = J − m(ρᵀρ·1 − ρρᵀ)). Viscous and Coulomb friction go to ``<dynamics damping friction>``; the
+reflected rotor inertias i_G²·C_M have no URDF element and are written in a comment (Pinocchio users
+add them as ``model.armature``). Only physically consistent parameters can be exported (a URDF
+link needs a positive mass and a positive semi-definite inertia).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from xml.sax.saxutils import escape
+
+import numpy as np
+
+from urident.errors import ConfigError
+from urident.model.parameters import inertia_tensor
+
+
+def _rpy(rotation: np.ndarray) -> np.ndarray:
+    import pinocchio as pin
+
+    return np.asarray(pin.rpy.matrixToRpy(np.asarray(rotation, dtype=float)))
+
+
+def _fmt(values) -> str:
+    return " ".join(f"{float(v):.12g}" for v in values)
+
+
+def link_inertial(p10: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """(mass, centre of mass, inertia about the centre of mass) from ten parameters."""
+    m = float(p10[0])
+    if not m > 0:
+        raise ConfigError(f"cannot export a link with mass {m:g} kg to URDF")
+    com = np.asarray(p10[1:4], dtype=float) / m
+    inertia = inertia_tensor(p10) - m * (com @ com * np.eye(3) - np.outer(com, com))
+    return m, com, inertia
+
+
+def to_urdf(spec, standard: np.ndarray, name: str | None = None) -> str:
+    """URDF text of ``spec``'s kinematics with the 78-vector ``standard``."""
+    from urident.ident.estimate_consistent import is_physically_consistent
+
+    p = np.asarray(standard, dtype=float)
+    if p.shape != (78,):
+        raise ConfigError(f"URDF export needs the 78 standard parameters, got shape {p.shape}")
+    if not is_physically_consistent(p, tol=1e-7):
+        raise ConfigError("URDF export needs physically consistent parameters (use --method consistent)")
+    name = name or f"{spec.name}_identified"
+    axes = {"x": "1 0 0", "y": "0 1 0", "z": "0 0 1"}
+    out = ['<?xml version="1.0"?>', f'<robot name="{escape(name)}">',
+           "  <!-- identified by urident; rotor inertias i_G^2*C_M [kg m^2] (not part of URDF): "
+           + _fmt(p[60:66]) + " -->",
+           '  <link name="base_link"/>']
+    parent = "base_link"
+    for i, joint in enumerate(spec.joints):
+        m, com, ic = link_inertial(p[10 * i:10 * i + 10])
+        link = f"{joint.name}_link"
+        out += [f'  <link name="{link}">', "    <inertial>",
+                f'      <origin xyz="{_fmt(com)}" rpy="0 0 0"/>', f'      <mass value="{m:.12g}"/>',
+                f'      <inertia ixx="{ic[0, 0]:.12g}" ixy="{ic[0, 1]:.12g}" ixz="{ic[0, 2]:.12g}" '
+                f'iyy="{ic[1, 1]:.12g}" iyz="{ic[1, 2]:.12g}" izz="{ic[2, 2]:.12g}"/>',
+                "    </inertial>", "  </link>",
+                f'  <joint name="{joint.name}" type="revolute">',
+                f'    <parent link="{parent}"/>', f'    <child link="{link}"/>',
+                f'    <origin xyz="{_fmt(joint.xyz)}" rpy="{_fmt(_rpy(joint.rotation))}"/>',
+                f'    <axis xyz="{axes[joint.axis]}"/>',
+                f'    <limit lower="{joint.q_min:.12g}" upper="{joint.q_max:.12g}" '
+                f'effort="{joint.tau_max:.12g}" velocity="{joint.qd_max:.12g}"/>',
+                f'    <dynamics damping="{p[66 + i]:.12g}" friction="{p[72 + i]:.12g}"/>',
+                "  </joint>"]
+        parent = link
+    out += ['  <link name="tool0"/>', '  <joint name="tool0_fixed" type="fixed">',
+            f'    <parent link="{parent}"/>', '    <child link="tool0"/>',
+            f'    <origin xyz="{_fmt(spec.tool_xyz)}" rpy="{_fmt(_rpy(spec.tool_rotation))}"/>',
+            "  </joint>", "</robot>", ""]
+    return "\n".join(out)
+
+
+def write_urdf(spec, standard: np.ndarray, path: str | Path, name: str | None = None) -> Path:
+    path = Path(path)
+    path.write_text(to_urdf(spec, standard, name))
+    return path
