@@ -75,8 +75,10 @@ def servo_samples(log) -> np.ndarray:
 
 def test_complete_run_records_every_controller_sample(files):
     out = files["dir"] / "complete.csv"
+    rrd = files["dir"] / "complete.rrd"
     with SimControllerProcess(host="127.0.0.51", robot="ur5e", initial_q=NEAR_START):
-        r = run_cli("127.0.0.51", "ur5e", files["ur5e"], out, files["config"], "--yes")
+        # Live streaming on: it must not cost a single controller sample.
+        r = run_cli("127.0.0.51", "ur5e", files["ur5e"], out, files["config"], "--yes", "--save-rrd", str(rrd))
         at_rest, runtime = controller_at_rest("127.0.0.51")
     assert r.returncode == 0, r.stderr
     assert "completed:" in r.stdout
@@ -91,6 +93,13 @@ def test_complete_run_records_every_controller_sample(files):
     assert abs(n_servo - expected) <= 0.02 * expected
     assert log.metadata["trajectory_sha256"] and log.metadata["torque_constants"][0] == 0.125
     assert at_rest and runtime != 2                            # stopScript ran
+    from urident.viz.readback import read_rrd
+
+    contents = read_rrd(rrd)
+    for joint in load_robot("ur5e").joint_names:
+        for series in ("measured", "predicted"):
+            t, values = contents.scalars(f"torque/{joint}/{series}")
+            assert len(t) > 0.5 * n_servo and np.all(np.isfinite(np.asarray(values, dtype=float)))
 
 
 @pytest.mark.parametrize("fault, words", [

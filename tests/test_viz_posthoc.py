@@ -90,7 +90,8 @@ def test_torque_comparison_metrics_text_round_trip(tmp_path, spec):
 def test_metrics_definition():
     measured = np.ones((10, 6))
     metrics = torque_metrics(measured, 0.9 * measured)
-    assert metrics["e_N"] == pytest.approx(0.1)
+    # The paper's eq. (22): ‖e‖ / m over m = 10 samples of six joints with e = 0.1 each.
+    assert metrics["e_N"] == pytest.approx(np.sqrt(60 * 0.01) / 10)
     assert metrics["rms/elbow"] == pytest.approx(0.1)
 
 

@@ -24,6 +24,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--check-only", action="store_true", help="do every check, move nothing")
     p.add_argument("--rerun", action="store_true", help="stream to a Rerun viewer while running")
     p.add_argument("--save-rrd", type=Path, help="stream to this .rrd file while running")
+    p.add_argument("--record-periods", action="store_true",
+                   help="also save every control period [s] to LOG.periods.npy (timing analysis)")
+    p.add_argument("--params", type=Path,
+                   help="parameters for the live predicted torque (urident identify output; default nominal)")
     p.set_defaults(func=run)
 
 
@@ -45,7 +49,8 @@ def run(args: argparse.Namespace) -> int:
         out = out.with_suffix(".csv")
     request = RunRequest(robot=args.robot, host=args.host, trajectory=args.trajectory,
                          out=out or Path("unused.csv"), config=load_experiment_config(args.config),
-                         repeat=args.repeat, check_only=args.check_only, assume_yes=args.yes)
+                         repeat=args.repeat, check_only=args.check_only, assume_yes=args.yes,
+                         record_periods=args.record_periods)
     live = None
     if (args.rerun or args.save_rrd) and not args.check_only:
         live = _live_streamer(args)
@@ -56,9 +61,16 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _live_streamer(args: argparse.Namespace):
-    try:
-        from urident.viz import live
-    except ImportError:
-        print("urident: warning: live streaming is not available", file=sys.stderr)
-        return None
-    return live.make_session_streamer(robot=args.robot, spawn=args.rerun, save=args.save_rrd)
+    """A Rerun streamer fed by the control loop (its own process; never blocks the loop).
+    Predicted torques use ``--params`` (identified) or the robot file's nominal parameters."""
+    from urident.model import load_robot
+    from urident.viz import LiveStreamer
+
+    spec = load_robot(args.robot)
+    params = None
+    if args.params is not None:
+        from urident.viz.prediction import load_prediction_params
+
+        params = load_prediction_params(args.params, spec)
+    return LiveStreamer(spec, params, save=args.save_rrd, spawn=bool(args.rerun and not args.save_rrd),
+                        fallback_save=args.out.with_suffix(".rrd") if args.out else None)

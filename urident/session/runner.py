@@ -40,6 +40,7 @@ class RunRequest:
     repeat: int = 1
     check_only: bool = False
     assume_yes: bool = False
+    record_periods: bool = False   # save every control period to LOG.periods.npy
 
 
 @dataclass
@@ -256,11 +257,15 @@ def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion:
         problems = link.stop()
         scheduling.__exit__(None, None, None)
         valid = periods[np.isfinite(periods)]
+        if request.record_periods:
+            np.save(request.out.with_suffix(".periods.npy"), valid)
         errors = np.abs(valid - period) if len(valid) else np.zeros(1)
         result.period_error_s = {"p50": float(np.percentile(errors, 50)),
                                  "p99": float(np.percentile(errors, 99)), "max": float(errors.max())}
         status = "aborted" if abort_reason else "completed"
+        over = int(np.sum(valid > period + config.monitors.late_tolerance_s))
         extra = {"period_error_s": result.period_error_s, "scheduling": scheduling_note,
+                 "periods_over_tolerance": over,
                  "max_tracking_error_rad": monitor.max_tracking_error,
                  "servo_timestamps_s": servo_timestamps, "stop_problems": problems,
                  "late_cycles": monitor.late.late}

@@ -281,8 +281,8 @@ def _linear_servo(plant: Plant, q_ref: np.ndarray, w: float):
     q[1:] = signal.lfilter(num[0], den, r, axis=0, zi=zi_q[:, None] * x0[None, :])[0]
     qd[1:] = signal.lfilter(num[1], den, r, axis=0, zi=zi_qd[:, None] * x0[None, :])[0]
     qdd = np.zeros_like(q_ref)
-    qdd[1:] = -w * w * (q[1:] - r) - 2.0 * w * qd[1:]
-    acc = np.diff(qd, axis=0) / dt
+    qdd[1:] = np.diff(qd, axis=0) / dt  # mean acceleration over each period, as the Plant reports
+    acc = qdd[1:]
     if (np.any(np.abs(acc) > plant.qdd_max) or np.any(np.abs(qd[1:]) > plant.qd_max)
             or np.any(q < plant.q_min) or np.any(q > plant.q_max)):
         return None

@@ -218,7 +218,6 @@ class Plant:
         c = qd0 + w * e0
         e1 = (e0 + c * dt) * decay
         qd1 = (qd0 - w * c * dt) * decay
-        qdd = -w * w * e1 - 2.0 * w * qd1
         acc = (qd1 - qd0) / dt
         limited = np.abs(acc) > self.qdd_max
         if np.any(limited) or np.any(np.abs(qd1) > self.qd_max):
@@ -227,7 +226,10 @@ class Plant:
             acc = (qd1 - qd0) / dt
             q1 = q0 + 0.5 * (qd0 + qd1) * dt
             return q1, qd1, acc
-        return self._servo_target + e1, qd1, qdd
+        # The reported q̈ is the mean acceleration over the period, (q̇1 − q̇0)/dt, not the filter's
+        # acceleration at its end: the target steps every period, so the end value is biased by
+        # about ω²·dt·q̇/2, and the torque (the current) belongs to the motion over the period.
+        return self._servo_target + e1, qd1, acc
 
     def _update_torques(self) -> None:
         t, q, qd, qdd = self.t, self.q, self.qd, self.qdd

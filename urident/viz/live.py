@@ -146,9 +146,8 @@ class _Consumer:
         self._sq_meas += np.sum(tau_m ** 2, axis=0)
         metrics = {f"rms/{j}": float(np.sqrt(self._sq_res[k] / self.processed))
                    for k, j in enumerate(self.joints)}
-        total = float(np.sum(self._sq_meas))
-        if total > 0:
-            metrics["e_N"] = float(np.sqrt(np.sum(self._sq_res) / total))
+        # The paper's e_N (eq. 22): ‖e‖ / m over the samples so far.
+        metrics["e_N"] = float(np.sqrt(np.sum(self._sq_res)) / self.processed)
         log_metrics(rec, metrics, prefix="metrics", t=self.last_t)
         log_metrics(rec, {"samples": self.last_seq, "late_cycles": self.late_cycles,
                           "dropped": self.last_seq - self.processed}, prefix="status", t=self.last_t)

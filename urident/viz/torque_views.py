@@ -90,14 +90,17 @@ def log_joint_series(rec: rr.RecordingStream, path: str, t: np.ndarray, values: 
 
 def torque_metrics(tau_measured: np.ndarray, tau_predicted: np.ndarray,
                    joint_names: Sequence[str] = DEFAULT_JOINT_NAMES) -> dict[str, float]:
-    """``e_N`` = ‖τ_meas − τ_pred‖_F / ‖τ_meas‖_F over all joints and samples (relative error,
-    0 = perfect), ``rms/{joint}`` = RMS of the residual [N m], ``rms_measured/{joint}`` [N m]."""
+    """``e_N`` = ‖τ_meas − τ_pred‖ / m, the paper's eq. (22) (m time samples) [N m],
+    ``rms/{joint}`` = RMS of the residual [N m], ``rms_measured/{joint}`` [N m]."""
+    from urident.ident.validate import metrics
+
     measured = np.asarray(tau_measured, dtype=float)
-    residual = measured - np.asarray(tau_predicted, dtype=float)
     out: dict[str, float] = {}
-    norm = float(np.linalg.norm(measured))
-    out["e_N"] = float(np.linalg.norm(residual) / norm) if norm > 0 else float("nan")
-    rms = np.sqrt(np.mean(residual ** 2, axis=0)) if len(residual) else np.full(6, np.nan)
+    if len(measured):
+        e_n, rms, _ = metrics(measured, tau_predicted)
+    else:
+        e_n, rms = float("nan"), np.full(6, np.nan)
+    out["e_N"] = float(e_n)
     rms_m = np.sqrt(np.mean(measured ** 2, axis=0)) if len(measured) else np.full(6, np.nan)
     for j, joint in enumerate(joint_names):
         out[f"rms/{joint}"] = float(rms[j])
@@ -111,7 +114,7 @@ def metrics_markdown(metrics: Mapping[str, float], title: str = "Torque predicti
     """Markdown summary of :func:`torque_metrics` (a table per joint when rms keys are there)."""
     lines = [f"# {title}", ""]
     if "e_N" in metrics:
-        lines += [f"**e_N** (relative residual ‖τ−τ̂‖/‖τ‖): **{metrics['e_N']:.4f}**", ""]
+        lines += [f"**e_N** (paper eq. 22, ‖τ−τ̂‖/m): **{metrics['e_N']:.4f}** N·m", ""]
     if any(f"rms/{j}" in metrics for j in joint_names):
         lines += ["| joint | RMS residual [N·m] | RMS measured [N·m] |", "| --- | ---: | ---: |"]
         for joint in joint_names:

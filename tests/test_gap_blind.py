@@ -1,0 +1,59 @@
+"""A few blind-benchmark scenarios (benchmarks/gap_blind.py) on short runs: the diagnosis sees
+only the logs; the truth is used for scoring afterwards."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import pytest
+
+from urident.model import load_robot
+
+_PATH = Path(__file__).resolve().parent.parent / "benchmarks" / "gap_blind.py"
+
+
+@pytest.fixture(scope="module")
+def gb():
+    spec = importlib.util.spec_from_file_location("gap_blind", _PATH)
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules["gap_blind"] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return load_robot("ur10e")
+
+
+def _run(gb, robot, truth, index=0):
+    sc = gb.Scenario(index, 5, truth)
+    return gb.run_scenario(robot, sc, rate=100.0, duration=20.0,
+                           config=__import__("urident.gap", fromlist=["GapConfig"]).GapConfig(n_boot=300))
+
+
+def test_effect_free_scenario_is_no_false_alarm(gb, robot):
+    row = _run(gb, robot, [])
+    assert row["found"] == [] and row["false_alarm"] is False
+
+
+def test_withheld_load_friction_is_found_and_its_shrink_predicted(gb, robot):
+    entry = {"name": "load_friction", "joints": [3], "coefficient": 0.04}
+    row = _run(gb, robot, [{"effect": "load_friction", "joint": 2, "entry": entry}], index=1)
+    assert row["top1"] and row["joint_ok"], row
+    s = row["shrink"][0]
+    assert s["actual_shrink_pct"] > 5
+    assert s["error_pts"] < 10
+
+
+def test_the_diagnosis_never_sees_the_truth(gb, robot):
+    """The recordings handed to the diagnosis carry no ground truth (arrays or sidecar keys)."""
+    sc = gb.Scenario(2, 5, [{"effect": "current_offset", "joint": 0,
+                             "entry": {"name": "current_offset", "joints": [1], "offset_a": 0.05}}])
+    ident, valid, sealed = gb.simulate_runs(robot, sc, 100.0, 10.0)
+    plain = gb._strip(valid)
+    assert type(plain).__name__ == "Recording"
+    assert not hasattr(plain, "extra_torque") and "extra" not in plain.metadata
+    assert "offset" not in repr(plain.metadata)

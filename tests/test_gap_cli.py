@@ -1,0 +1,72 @@
+"""``urident gap``: arguments, console report, JSON file, one-line errors."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from urident.cli.main import main
+from urident.logs import LOG_FIELDS, LogWriter
+
+
+def _write_log(path, rec):
+    n = len(rec.t)
+    zeros = np.zeros(6)
+    with LogWriter(path, LOG_FIELDS, {"robot": "ur10e", "rate_hz": 100.0}, overwrite=True) as w:
+        for k in range(n):
+            w.append({"t": rec.t[k], "q": rec.q[k], "qd": rec.qd[k], "current": rec.current[k],
+                      "target_q": rec.q[k], "target_qd": rec.qd[k], "target_qdd": zeros,
+                      "target_current": zeros, "target_moment": zeros,
+                      "temperature": np.full(6, 30.0), "robot_mode": 7, "safety_status_bits": 1,
+                      "runtime_state": 2})
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory):
+    from test_gap_diagnose import simulate, sines
+    from urident.model import load_robot
+
+    spec = load_robot("ur10e")
+    d = tmp_path_factory.mktemp("gap")
+    eff = "effects:\n  - name: current_offset\n    joints: [4]\n    offset_a: 0.1\n"
+    paths = []
+    for seed, name in ((61, "ident.csv"), (62, "valid.csv")):
+        rec = simulate(spec, sines(seed, duration=16.0), eff, seed=seed)
+        _write_log(d / name, rec)
+        paths.append(d / name)
+    return paths
+
+
+def test_cli_reports_and_writes_json(logs, tmp_path, capsys):
+    out = tmp_path / "gap.json"
+    rc = main(["gap", "--robot", "ur10e", "--ident", str(logs[0]), "--valid", str(logs[1]),
+               "--json-out", str(out), "--max-effects", "1"])
+    assert rc == 0
+    text = capsys.readouterr().out
+    assert "Where" in text and "Which" in text and "How far" in text
+    assert "current_offset on joint 4" in text
+    doc = json.loads(out.read_text())
+    assert doc["findings"][0]["effect"] == "current_offset" and doc["findings"][0]["joint"] == 4
+    assert len(doc["baseline"]["rms_nm"]) == 6 and len(doc["final"]["rms_nm"]) == 6
+    assert doc["final"]["rms_nm"][3] < doc["baseline"]["rms_nm"][3]
+
+
+def test_cli_rows_per_set_and_effect_subset(logs, capsys):
+    rc = main(["gap", "--robot", "ur10e", "--ident", str(logs[0]), "--valid", str(logs[1]),
+               "--ident-rows", "1-1400", "--valid-rows", "200-1500", "--effects", "stribeck,load_friction"])
+    assert rc == 0
+    text = capsys.readouterr().out
+    assert "current_offset" not in text.split("Which")[1]
+
+
+def test_cli_errors_are_one_line(logs, capsys):
+    rc = main(["gap", "--robot", "ur10e", "--ident", str(logs[0]), "--valid", str(logs[1]),
+               "--effects", "gremlins"])
+    err = capsys.readouterr().err
+    assert rc != 0 and err.startswith("urident: error: ") and "gremlins" in err
+    assert err.count("\n") == 1
+    rc = main(["gap", "--robot", "ur10e", "--ident", str(logs[0]) + ".missing", "--valid", str(logs[1])])
+    err = capsys.readouterr().err
+    assert rc != 0 and err.startswith("urident: error: ") and err.count("\n") == 1

@@ -1,0 +1,76 @@
+"""Pure pieces of the gap diagnosis: maps, angle spectrum, bootstrap, candidate columns."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from urident.gap import maps
+from urident.gap.bootstrap import block_bootstrap_means, interval
+
+
+def test_velocity_map_puts_near_zero_energy_in_its_band(rng):
+    qd = rng.uniform(-1, 1, 5000)
+    r = rng.normal(0, 0.1, 5000) + 2.0 * (np.abs(qd) < 0.02)
+    bins = maps.velocity_map(r, qd)
+    band = bins[0]
+    assert band.label.startswith("|q̇| < 0.02")
+    assert band.sample_share == pytest.approx(0.02, abs=0.01)
+    assert band.energy_share > 0.8
+    assert sum(b.sample_share for b in bins) == pytest.approx(1.0)
+    assert sum(b.energy_share for b in bins) == pytest.approx(1.0)
+    reg = maps.concentrated_regimes(1, {"velocity": bins})
+    assert reg and reg[0].axis == "velocity" and reg[0].text().startswith("joint 2: ")
+    assert "which holds 2 % of the samples" in reg[0].text()
+
+
+def test_no_regime_when_the_residual_is_white(rng):
+    qd = rng.uniform(-1, 1, 5000)
+    q = np.cumsum(qd) * 0.01
+    r = rng.normal(0, 0.1, 5000)
+    found = maps.concentrated_regimes(0, maps.joint_maps(r, qd, rng.normal(size=5000), q,
+                                                         np.arange(5000) * 0.01))
+    assert found == []
+
+
+@pytest.mark.parametrize("k", [3, 37, 101])
+def test_angle_spectrum_finds_a_gear_harmonic(rng, k):
+    t = np.linspace(0, 60, 30000)
+    q = 0.8 * np.sin(0.3 * t) + 0.3 * np.sin(1.1 * t)
+    qd = np.gradient(q, t)
+    r = 0.3 * np.sin(k * q + 0.4) + rng.normal(0, 0.2, len(t))
+    spec = maps.angle_spectrum(r, q, qd)
+    assert spec.peaks(1)[0] == k
+    assert spec.amplitude[k - 1] == pytest.approx(0.3, rel=0.35)
+
+
+def test_angle_spectrum_friction_mode(rng):
+    t = np.linspace(0, 60, 30000)
+    q = 0.8 * np.sin(0.5 * t)
+    qd = np.gradient(q, t)
+    r = 0.3 * np.sin(50 * q) * np.tanh(qd / 0.01) + rng.normal(0, 0.1, len(t))
+    spec = maps.angle_spectrum(r, q, qd)
+    assert spec.peaks(1, friction=True)[0] == 50
+    assert spec.amplitude_friction[49] > 3 * spec.amplitude[49]
+
+
+def test_frequency_map_recovers_a_delay(rng):
+    t = np.arange(0, 30, 0.004)
+    tau = 20 * np.sin(2 * t) + 5 * np.sin(7 * t)
+    dtau = np.gradient(tau, t)
+    d = 0.006
+    r = np.interp(t - d, t, tau) - tau + rng.normal(0, 0.05, len(t))
+    fm = maps.frequency_map(r, 250.0, dtau)
+    assert fm.delay_s == pytest.approx(d, rel=0.1)
+    assert fm.corr_dtau < -0.9
+
+
+def test_block_bootstrap_interval_covers_the_mean_and_widens_with_correlation(rng):
+    white = rng.normal(1.0, 1.0, 4000)
+    lo, hi = interval(block_bootstrap_means(white, 40, 500, 1))
+    assert lo < 1.0 < hi and hi - lo < 0.15
+    walk = 1.0 + np.repeat(rng.normal(0, 1.0, 40), 100)      # strongly correlated in blocks of 100
+    lo2, hi2 = interval(block_bootstrap_means(walk, 100, 500, 1))
+    assert hi2 - lo2 > 3 * (hi - lo)
+    both = block_bootstrap_means(np.c_[white, walk], 100, 200, 2)
+    assert both.shape == (200, 2)

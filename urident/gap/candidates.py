@@ -1,0 +1,256 @@
+"""Which: regressor columns for every effect of the catalogue, per joint.
+
+A :class:`Candidate` is one variant (e.g. one Stribeck velocity) of one effect on one joint (or on
+all joints: payload_error), fitted in one mode:
+
+* ``ident``: the columns are added to the baseline and refitted on the identification logs
+  (jointly with the base parameters), then scored on the validation logs;
+* ``cv``: for effects that may differ between runs (friction of the day, warm-up, a payload
+  added later, a sensor offset), the baseline stays fixed and only the effect's columns are fitted by blocked
+  cross-validation inside the validation logs.
+
+Columns (on the rows of joint j; ε the model's tanh slope, s = tanh(q̇_j/ε)):
+
+=====================  =============================================================================
+stribeck               exp(−(q̇_j/v_s)²)·s, v_s on a grid
+load_friction          |τ̂_link,j|·s
+thermal_drift          x·q̇_j and x·s with x = time since the start of the run [min], or the joint
+                       temperature's change since then, or its difference to the identification
+                       logs' mean temperature
+position_ripple        sin(k·q_j), cos(k·q_j) (mode torque) or the same × s (mode friction), k from
+                       the peaks of the angle-domain spectrum of the identification residual
+current_delay          dτ̂_j/dt (coefficient −d)
+torque_constant_error  τ̂_j (coefficient 1/gain_factor − 1)
+current_offset         1 (coefficient the offset in N·m)
+payload_error          all joints: the torque of 1 kg at the tool point, and the three first-moment
+                       columns m·ρ of body 6 (mass and centre-of-mass shift)
+joint_elasticity       d²τ̂_link,j/dt² (coefficient −J/k)
+=====================  =============================================================================
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from urident.gap.residual import SetContext
+
+#: The catalogue's names, in its order (urident.simcontroller.effects.EFFECT_NAMES).
+EFFECTS = ("stribeck", "load_friction", "thermal_drift", "position_ripple", "current_delay",
+           "torque_constant_error", "current_offset", "payload_error", "joint_elasticity")
+#: Effects that may differ between runs (friction of the day, warm-up, a sensor offset, a payload
+#: added later): also fitted by blocked CV inside the validation logs.
+CV_EFFECTS = ("stribeck", "load_friction", "thermal_drift", "current_offset", "payload_error")
+#: Effects the identification fit cannot see when present there too (absorbed exactly by the
+#: base parameters): only CV.
+CV_ONLY = ("payload_error",)
+STRIBECK_VS = (0.005, 0.01, 0.02, 0.04, 0.08)   # [rad/s]
+
+
+@dataclass(eq=False)
+class Candidate:
+    effect: str
+    joint: int | None                    # 0-based; None: acts on all joints
+    variant: str
+    mode: str                            # "ident" or "cv"
+    columns: tuple[str, ...]
+    build: Callable[[SetContext], np.ndarray] = field(repr=False)   # → (N, 6, k)
+    settings: dict = field(default_factory=dict)
+
+    @property
+    def key(self) -> tuple[str, int | None]:
+        return (self.effect, self.joint)
+
+    @property
+    def name(self) -> str:
+        where = "all joints" if self.joint is None else f"joint {self.joint + 1}"
+        v = f" ({self.variant})" if self.variant else ""
+        return f"{self.effect}{v} on {where} [{self.mode}]"
+
+    @property
+    def k(self) -> int:
+        return len(self.columns)
+
+    def features(self, ctx: SetContext) -> np.ndarray:
+        key = ("features", id(self))
+        if key not in ctx.cache:
+            f = np.asarray(self.build(ctx), float)
+            assert f.shape == (ctx.n, 6, self.k), (self.name, f.shape)
+            ctx.cache[key] = f
+        return ctx.cache[key]
+
+    def magnitude(self, beta: np.ndarray, spec=None) -> dict:
+        """The fitted coefficients in the effect's own terms."""
+        b = np.asarray(beta, float)
+        e = self.effect
+        out: dict = {"coefficients": [float(x) for x in b]}
+        if e == "stribeck":
+            out.update(extra_static_friction_nm=float(b[0]), stribeck_velocity_rad_s=self.settings["vs"])
+        elif e == "load_friction":
+            out.update(coefficient=float(b[0]))
+        elif e == "thermal_drift":
+            out.update(drift_variable=self.variant, viscous_change_nm_s_per_unit=float(b[0]),
+                       coulomb_change_nm_per_unit=float(b[1]))
+        elif e == "position_ripple":
+            out.update(harmonic=self.settings["k"], mode=self.settings["ripple_mode"],
+                       amplitude_nm=float(np.hypot(b[0], b[1])),
+                       phase_rad=float(np.arctan2(b[1], b[0])))
+        elif e == "current_delay":
+            out.update(delay_s=float(-b[0]))
+        elif e == "torque_constant_error":
+            out.update(gain_factor=float(1.0 / (1.0 + b[0])) if b[0] > -1 else float("nan"))
+        elif e == "current_offset":
+            out.update(offset_nm=float(b[0]))
+            if spec is not None and self.joint is not None:
+                out.update(offset_a=float(b[0] / spec.drive_gains[self.joint]))
+        elif e == "payload_error":
+            m = float(b[0])
+            out.update(mass_kg=m, first_moment_kg_m=[float(x) for x in b[1:4]])
+        elif e == "joint_elasticity":
+            out.update(inertia_over_stiffness_s2=float(-b[0]))
+            if b[0] < 0:
+                out.update(resonance_hz=float(1.0 / (2 * np.pi * np.sqrt(-b[0]))))
+        return out
+
+
+def _on_joint(ctx: SetContext, j: int, cols) -> np.ndarray:
+    cols = [np.asarray(c, float) * np.ones(ctx.n) for c in cols]
+    out = np.zeros((ctx.n, 6, len(cols)))
+    for i, c in enumerate(cols):
+        out[:, j, i] = c
+    return out
+
+
+def _segment_first(ctx: SetContext, x: np.ndarray) -> np.ndarray:
+    """(N, 6) value of x at the first sample of each sample's segment."""
+    seg = ctx.data.segment
+    starts = np.r_[0, np.flatnonzero(np.diff(seg) != 0) + 1]
+    first = np.zeros_like(x)
+    bounds = np.r_[starts, len(seg)]
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        first[a:b] = x[a]
+    return first
+
+
+def stribeck(j: int, vs: float, mode: str = "ident") -> Candidate:
+    def build(ctx):
+        qd = ctx.qd[:, j]
+        return _on_joint(ctx, j, [np.exp(-(qd / vs) ** 2) * np.tanh(qd / ctx.friction_eps)])
+    return Candidate("stribeck", j, f"v_s={vs:g} rad/s", mode, ("exp(-(qd/vs)^2)*sign(qd)",), build,
+                     {"vs": vs})
+
+
+def load_friction(j: int, mode: str = "ident") -> Candidate:
+    def build(ctx):
+        return _on_joint(ctx, j, [np.abs(ctx.tau_link[:, j]) * ctx.sign()[:, j]])
+    return Candidate("load_friction", j, "", mode, ("|tau_link|*sign(qd)",), build)
+
+
+def thermal_drift(j: int, variable: str, mode: str = "ident", reference: np.ndarray | None = None) -> Candidate:
+    def build(ctx):
+        if variable == "time":
+            x = ctx.data.run_time / 60.0
+        else:
+            temp = ctx.data.temperature
+            if temp is None:
+                x = np.zeros(ctx.n)
+            elif variable == "temperature":
+                x = (temp - _segment_first(ctx, temp))[:, j]
+            else:
+                x = temp[:, j] - reference[j]
+        return _on_joint(ctx, j, [x * ctx.qd[:, j], x * ctx.sign()[:, j]])
+    unit = {"time": "min", "temperature": "°C since run start", "temperature_abs": "°C vs ident"}
+    return Candidate("thermal_drift", j, f"{variable} [{unit[variable]}]", mode,
+                     ("x*qd", "x*sign(qd)"), build, {"variable": variable})
+
+
+def position_ripple(j: int, k: int, ripple_mode: str, mode: str = "ident") -> Candidate:
+    def build(ctx):
+        q = ctx.q[:, j]
+        s = ctx.sign()[:, j] if ripple_mode == "friction" else 1.0
+        return _on_joint(ctx, j, [np.sin(k * q) * s, np.cos(k * q) * s])
+    return Candidate("position_ripple", j, f"k={k} {ripple_mode}", mode, ("sin(kq)", "cos(kq)"), build,
+                     {"k": int(k), "ripple_mode": ripple_mode})
+
+
+def current_delay(j: int, mode: str = "ident") -> Candidate:
+    return Candidate("current_delay", j, "", mode, ("dtau/dt",),
+                     lambda ctx: _on_joint(ctx, j, [ctx.dtau[:, j]]))
+
+
+def torque_constant_error(j: int, mode: str = "ident") -> Candidate:
+    return Candidate("torque_constant_error", j, "", mode, ("tau_hat",),
+                     lambda ctx: _on_joint(ctx, j, [ctx.tau_hat[:, j]]))
+
+
+def current_offset(j: int, mode: str = "ident") -> Candidate:
+    return Candidate("current_offset", j, "", mode, ("1",), lambda ctx: _on_joint(ctx, j, [1.0]))
+
+
+def joint_elasticity(j: int, mode: str = "ident") -> Candidate:
+    return Candidate("joint_elasticity", j, "", mode, ("d2tau_link/dt2",),
+                     lambda ctx: _on_joint(ctx, j, [ctx.ddtau_link[:, j]]))
+
+
+def payload_error(spec, mode: str = "cv") -> Candidate:
+    from urident.model import regressor_blocks
+    from urident.model.parameters import body_params
+
+    tool = np.asarray(spec.tool_xyz, float)
+    unit_mass = body_params(1.0, tool, np.zeros((3, 3)))
+
+    def build(ctx):
+        y6 = regressor_blocks(spec, ctx.q, ctx.qd, ctx.qdd, ctx.friction_eps)[:, :, 50:60]
+        point = y6 @ unit_mass
+        return np.concatenate([point[:, :, None], y6[:, :, 1:4]], axis=2)
+    return Candidate("payload_error", None, "point mass at the tool", mode,
+                     ("tool point mass", "m*rho_x6", "m*rho_y6", "m*rho_z6"), build)
+
+
+def families(spec, ident: SetContext, valid: SetContext, effects=EFFECTS, ripple_peaks: int = 3,
+             joints=range(6)) -> list[list[Candidate]]:
+    """Every (effect, joint, mode) with its variants; the diagnosis keeps, per family, the variant
+    that fits the identification data best (the validation data in CV mode)."""
+    from urident.gap.maps import angle_spectrum
+
+    out: list[list[Candidate]] = []
+    have_temp = ident.data.temperature is not None and valid.data.temperature is not None
+    t_ref = np.mean(ident.data.temperature, axis=0) if have_temp else None
+    r_id = ident.residual
+    for e in effects:
+        if e == "payload_error":
+            out.append([payload_error(spec, "cv")])
+            continue
+        for j in joints:
+            modes = ["cv"] if e in CV_ONLY else (["ident", "cv"] if e in CV_EFFECTS else ["ident"])
+            for mode in modes:
+                if e == "stribeck":
+                    fam = [stribeck(j, vs, mode) for vs in STRIBECK_VS]
+                elif e == "load_friction":
+                    fam = [load_friction(j, mode)]
+                elif e == "thermal_drift":
+                    fam = [thermal_drift(j, "time", mode)]
+                    if have_temp:
+                        fam += [thermal_drift(j, "temperature", mode)]
+                        if mode == "ident":
+                            fam += [thermal_drift(j, "temperature_abs", mode, t_ref)]
+                elif e == "position_ripple":
+                    spec_j = angle_spectrum(r_id[:, j], ident.q[:, j], ident.qd[:, j], ident.friction_eps)
+                    fam = [position_ripple(j, k, "torque", mode) for k in spec_j.peaks(ripple_peaks)]
+                    fam += [position_ripple(j, k, "friction", mode)
+                            for k in spec_j.peaks(ripple_peaks, friction=True)]
+                elif e == "current_delay":
+                    fam = [current_delay(j, mode)]
+                elif e == "torque_constant_error":
+                    fam = [torque_constant_error(j, mode)]
+                elif e == "current_offset":
+                    fam = [current_offset(j, mode)]
+                elif e == "joint_elasticity":
+                    fam = [joint_elasticity(j, mode)]
+                else:
+                    raise ValueError(f"unknown effect {e!r}")
+                if fam:
+                    out.append(fam)
+    return out

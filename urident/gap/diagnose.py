@@ -1,0 +1,337 @@
+"""The diagnosis: where the baseline's residual lies, which catalogue effect explains it, how far
+it shrinks.
+
+1. Baseline (paper: OLS, tanh friction, ε = 0.01 rad/s) on the identification logs (or loaded);
+   residual r = τ_measured − τ̂ on the validation logs, τ_measured = drive gains × raw current.
+2. Where: per joint RMS and share of the residual energy; binned maps and spectra
+   (:mod:`.maps`); the regimes where the energy concentrates.
+3. Which: every candidate of :mod:`.candidates` (per effect, joint and mode; per family the
+   variant that fits the fitting data best) is added to the current model and scored on held-out
+   validation data: per-sample improvement d_k = Σ_j (r_kj² − r'_kj²). Its mean gets a block
+   bootstrap interval (blocks of ~1 s). A candidate is *significant* when the lower bound is > 0
+   and it shrinks its joint's RMS by at least ``min_shrink_pct``. Greedy forward selection: the
+   best significant candidate is kept, the others are tested again on top, until none is
+   significant (or ``max_effects``). None at the first step: "no unmodelled effect found".
+   Confounds: a candidate of another effect (or joint) whose predicted correction correlates with
+   the chosen one's (uncentred) by |ρ| ≥ ``confound_corr`` and whose improvement interval
+   overlaps the chosen one's is reported as confounded with it.
+4. How far: validation RMS per joint and e_N before and after the selected effects.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+from urident.errors import ConfigError
+from urident.gap import maps
+from urident.gap.bootstrap import block_bootstrap_means, default_block_length, interval
+from urident.gap.candidates import EFFECTS, Candidate, families
+from urident.gap.data import GapSet, build_set
+from urident.gap.residual import SetContext, fit_baseline, make_context
+from urident.gap.scoring import Fit, Scorer
+
+NO_EFFECT = "no unmodelled effect found"
+_PREFER_AXIS = {"stribeck": ("velocity",), "load_friction": ("load",), "thermal_drift": ("time",),
+                "position_ripple": ("angle",), "current_offset": ("velocity", "angle"),
+                "torque_constant_error": ("load",), "payload_error": ("angle",),
+                "current_delay": (), "joint_elasticity": ()}
+
+
+@dataclass(frozen=True)
+class GapConfig:
+    effects: tuple[str, ...] = EFFECTS
+    n_folds: int = 5                 # CV blocks inside the validation logs
+    n_boot: int = 1000               # bootstrap resamples
+    level: float = 0.95              # interval level
+    min_shrink_pct: float = 3.0      # a finding must shrink its joint's RMS by at least this
+    max_effects: int = 3
+    confound_corr: float = 0.8
+    block_s: float = 1.0             # bootstrap block length [s]
+    friction_eps: float = 0.01       # [rad/s] the baseline's tanh slope
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        unknown = [e for e in self.effects if e not in EFFECTS]
+        if unknown:
+            raise ConfigError(f"effect {unknown[0]!r} unknown (known: {', '.join(EFFECTS)})")
+        if not (0 < self.level < 1) or self.n_boot < 50 or self.max_effects < 0:
+            raise ConfigError("gap config: level in (0, 1), n_boot >= 50, max_effects >= 0")
+
+
+@dataclass(eq=False)
+class Score:
+    """One candidate scored on top of the current model."""
+
+    candidate: Candidate
+    fit: Fit
+    gain: float                      # mean per-sample improvement Σ_j Δr² [N·m²]
+    ci: tuple[float, float]
+    joint: int                       # 0-based joint it helps most (its own for one-joint effects)
+    rms_before: np.ndarray
+    rms_after: np.ndarray
+    significant: bool
+    change: np.ndarray = field(repr=False)       # (N, 6) correction of the prediction
+    d: np.ndarray = field(repr=False)            # (N,) per-sample improvement
+
+    @property
+    def shrink_pct(self) -> float:
+        b, a = self.rms_before[self.joint], self.rms_after[self.joint]
+        return float(100.0 * (1.0 - a / b)) if b > 0 else 0.0
+
+    def row(self, spec=None) -> dict:
+        c = self.candidate
+        coef = self.fit.coefficients()[id(c)]
+        return {"effect": c.effect, "joint": self.joint + 1, "variant": c.variant, "mode": c.mode,
+                "gain_nm2": self.gain, "gain_ci95_nm2": list(self.ci),
+                "rms_before_nm": float(self.rms_before[self.joint]),
+                "rms_after_nm": float(self.rms_after[self.joint]), "shrink_pct": self.shrink_pct,
+                "significant": bool(self.significant), "magnitude": c.magnitude(coef, spec)}
+
+
+@dataclass(frozen=True)
+class Finding:
+    joint: int                       # 1-based
+    effect: str
+    variant: str
+    mode: str
+    regime: str
+    rms_before_nm: float
+    rms_after_nm: float
+    shrink_pct: float
+    confidence: str                  # high | medium | confounded
+    gain_ci95_nm2: tuple[float, float]
+    magnitude: dict
+    confounded_with: tuple[str, ...] = ()
+
+    def as_dict(self) -> dict:
+        return {"joint": self.joint, "effect": self.effect, "variant": self.variant, "mode": self.mode,
+                "regime": self.regime, "rms_before_nm": self.rms_before_nm,
+                "rms_after_nm": self.rms_after_nm, "shrink_pct": self.shrink_pct,
+                "confidence": self.confidence, "gain_ci95_nm2": list(self.gain_ci95_nm2),
+                "magnitude": self.magnitude, "confounded_with": list(self.confounded_with)}
+
+
+@dataclass(eq=False)
+class GapResult:
+    robot: str
+    model: object                    # the baseline IdentifiedModel
+    ident: SetContext
+    valid: SetContext
+    baseline_e_n: float
+    baseline_rms: np.ndarray
+    final_e_n: float
+    final_rms: np.ndarray
+    findings: list[Finding]
+    fit: Fit                         # the selected candidates, fitted
+    steps: list[list[Score]]         # every candidate scored at every greedy step
+    confounds: list[dict]
+    where: dict                      # per-joint maps and regimes
+    config: GapConfig
+    scorer: Scorer | None = None     # to fit any candidates on the same data (benchmarks)
+
+    @property
+    def verdict(self) -> str:
+        if not self.findings:
+            return NO_EFFECT
+        return "; ".join(f"{f.effect} on joint {f.joint}" for f in self.findings)
+
+    def chosen(self) -> list[Candidate]:
+        return list(self.fit.ident) + list(self.fit.cv)
+
+    def best_of(self, effect: str, joint: int | None) -> Candidate | None:
+        """The best-scoring first-step candidate of ``effect`` on 0-based ``joint`` (any joint
+        for effects on all joints)."""
+        best = None
+        for s in self.steps[0] if self.steps else []:
+            c = s.candidate
+            if c.effect == effect and (c.joint is None or c.joint == joint):
+                if best is None or s.gain > best.gain:
+                    best = s
+        return None if best is None else best.candidate
+
+    def correction(self, candidates: Sequence[Candidate]) -> Fit:
+        """``candidates`` fitted together on this diagnosis' data (as the selection would be);
+        ``.change(make_context(spec, result.model, other_set))`` applies them elsewhere."""
+        return self.scorer.evaluate(list(candidates))
+
+    def as_dict(self) -> dict:
+        from urident.gap.report import result_dict
+
+        return result_dict(self)
+
+
+def _rms(r: np.ndarray) -> np.ndarray:
+    return np.sqrt(np.mean(r * r, axis=0))
+
+
+def _e_n(r: np.ndarray) -> float:
+    return float(np.linalg.norm(r) / r.shape[0])
+
+
+def diagnose(ident_recordings: Sequence, valid_recordings: Sequence, spec, *, params=None,
+             drive_gains=None, config: GapConfig | None = None, preprocess=None) -> GapResult:
+    """Diagnose from recordings only (``urident.logs.Recording``) and the robot ``spec``.
+    ``params``: a baseline IdentifiedModel (e.g. from ``load_params``) instead of identifying it."""
+    config = config or GapConfig()
+    if drive_gains is None and params is not None:
+        drive_gains = params.drive_gains
+    ident = build_set(ident_recordings, spec, drive_gains, preprocess, "identification logs")
+    valid = build_set(valid_recordings, spec, drive_gains, preprocess, "validation logs")
+    return diagnose_prepared(spec, ident, valid, params=params, config=config)
+
+
+def diagnose_prepared(spec, ident: GapSet, valid: GapSet, *, params=None,
+                      config: GapConfig | None = None) -> GapResult:
+    config = config or GapConfig()
+    model = params if params is not None else fit_baseline(spec, ident, config.friction_eps)
+    ctx_i = make_context(spec, model, ident)
+    ctx_v = make_context(spec, model, valid)
+    scorer = Scorer(ctx_i, ctx_v, config.n_folds)
+    r0 = ctx_v.residual
+    where = describe_where(ctx_v)
+
+    fams = families(spec, ctx_i, ctx_v, config.effects)
+    pool = [max(f, key=scorer.training_gain) if len(f) > 1 else f[0] for f in fams]
+    block = default_block_length(ctx_v.n, valid.sample_rate * config.block_s)
+
+    selected: list[Candidate] = []
+    findings: list[Finding] = []
+    steps: list[list[Score]] = []
+    confounds: list[dict] = []
+    current = scorer.evaluate([])
+    for step in range(config.max_effects + 1):
+        taken = {c.key for c in selected}
+        scores = _score_all(scorer, current, [c for c in pool if c.key not in taken], block, config)
+        steps.append(scores)
+        if step == config.max_effects:
+            break
+        sig = [s for s in scores if s.significant]
+        if not sig:
+            break
+        best = max(sig, key=lambda s: s.gain)
+        conf = _confounded(best, scores, block, config)
+        for other in conf:
+            confounds.append({"step": step + 1, "chosen": _label(best), "alternative": _label(other),
+                              "correlation": float(_corr(best.change, other.change)),
+                              "gain_nm2": [best.gain, other.gain]})
+        findings.append(_finding(best, conf, ctx_v, spec))
+        selected.append(best.candidate)
+        current = best.fit
+
+    final_r = current.residual
+    return GapResult(spec.name, model, ctx_i, ctx_v, _e_n(r0), _rms(r0), _e_n(final_r), _rms(final_r),
+                     findings, current, steps, confounds, where, config, scorer)
+
+
+def _label(s: Score) -> str:
+    c = s.candidate
+    return f"{c.effect} on joint {s.joint + 1}" + (f" ({c.variant})" if c.variant else "")
+
+
+def _score_all(scorer: Scorer, current: Fit, pool: list[Candidate], block: int,
+               config: GapConfig) -> list[Score]:
+    base = current.residual
+    sel = list(current.ident) + list(current.cv)
+    fits = [scorer.evaluate(sel + [c]) for c in pool]
+    if not fits:
+        return []
+    d = np.stack([np.sum(base ** 2 - f.residual ** 2, axis=1) for f in fits], axis=1)   # (N, m)
+    boot = block_bootstrap_means(d, block, config.n_boot, config.seed)
+    rms0 = _rms(base)
+    out = []
+    for i, (c, f) in enumerate(zip(pool, fits)):
+        rms1 = _rms(f.residual)
+        joint = c.joint if c.joint is not None else int(np.argmax(rms0 ** 2 - rms1 ** 2))
+        lo, hi = interval(boot[:, i], config.level)
+        s = Score(c, f, float(d[:, i].mean()), (lo, hi), joint, rms0, rms1, False,
+                  base - f.residual, d[:, i])
+        s.significant = bool(lo > 0 and s.shrink_pct >= config.min_shrink_pct)
+        out.append(s)
+    out.sort(key=lambda s: -s.gain)
+    return out
+
+
+def _corr(a: np.ndarray, b: np.ndarray) -> float:
+    """Uncentred correlation (cosine) of two corrections: regression columns have no intercept,
+    so a constant and a nearly constant correction are the same explanation."""
+    a = a.reshape(-1)
+    b = b.reshape(-1)
+    den = np.sqrt((a @ a) * (b @ b))
+    return float(a @ b / den) if den > 0 else 0.0
+
+
+def _confounded(best: Score, scores: list[Score], block: int, config: GapConfig) -> list[Score]:
+    """Candidates of another (effect, joint) whose correction is nearly the same as ``best``'s
+    (uncentred correlation ≥ ``confound_corr``) and whose improvement interval overlaps
+    ``best``'s: the data cannot tell them apart."""
+    out = []
+    seen = set()
+    for s in scores:
+        key = s.candidate.key
+        if s is best or key == best.candidate.key or key in seen or s.gain <= 0:
+            continue
+        if s.ci[1] < best.ci[0]:
+            continue
+        if abs(_corr(best.change, s.change)) < config.confound_corr:
+            continue
+        seen.add(key)
+        out.append(s)
+    return out
+
+
+def _signed_load(ctx: SetContext) -> np.ndarray:
+    return np.sign(ctx.qd) * np.abs(ctx.tau_hat)
+
+
+def _finding(best: Score, conf: list[Score], ctx: SetContext, spec) -> Finding:
+    c = best.candidate
+    j = best.joint
+    before = best.rms_before[j]
+    after = best.rms_after[j]
+    base_r = best.change + best.fit.residual          # residual before this step
+    gain_j = base_r[:, j] ** 2 - best.fit.residual[:, j] ** 2
+    reg = maps.best_regime(j, gain_j, ctx.qd[:, j], _signed_load(ctx)[:, j], ctx.q[:, j],
+                           ctx.data.run_time, _PREFER_AXIS.get(c.effect, ()))
+    if reg is not None:
+        regime = reg.text("of the improvement")
+    else:
+        regime = f"joint {j + 1}: spread over all regimes"
+    if c.effect == "current_delay":
+        fm = maps.frequency_map(base_r[:, j], ctx.data.sample_rate, ctx.dtau[:, j])
+        regime += f"; residual vs dτ̂/dt correlation {fm.corr_dtau:+.2f}"
+    lo, hi = best.ci
+    if conf:
+        confidence = "confounded"
+    else:
+        z = best.gain / max((hi - lo) / (2 * 1.96), 1e-300)
+        confidence = "high" if (z > 4 and best.shrink_pct >= 10) else "medium"
+    coef = best.fit.coefficients()[id(c)]
+    return Finding(j + 1, c.effect, c.variant, c.mode, regime, float(before), float(after),
+                   best.shrink_pct, confidence, (lo, hi), c.magnitude(coef, spec),
+                   tuple(_label(s) for s in conf))
+
+
+def describe_where(ctx: SetContext) -> dict:
+    """Per joint: RMS, share of the residual energy, maps, angle spectrum, frequency map and the
+    regimes where the residual concentrates (texts)."""
+    r = ctx.residual
+    energy = np.sum(r * r, axis=0)
+    total = float(energy.sum()) or 1.0
+    load = _signed_load(ctx)
+    out = {"joints": []}
+    fs = ctx.data.sample_rate
+    for j in range(6):
+        jm = maps.joint_maps(r[:, j], ctx.qd[:, j], load[:, j], ctx.q[:, j], ctx.data.run_time)
+        regimes = maps.concentrated_regimes(j, jm)
+        spec_a = maps.angle_spectrum(r[:, j], ctx.q[:, j], ctx.qd[:, j], ctx.friction_eps)
+        fm = maps.frequency_map(r[:, j], fs, ctx.dtau[:, j])
+        out["joints"].append({
+            "joint": j + 1, "rms_nm": float(np.sqrt(energy[j] / len(r))),
+            "energy_share": float(energy[j] / total), "mean_nm": float(r[:, j].mean()),
+            "maps": {k: [b.as_dict() for b in v] for k, v in jm.items()},
+            "angle_spectrum": spec_a.as_dict(), "frequency": fm.as_dict(),
+            "regimes": [g.text() for g in regimes]})
+    return out

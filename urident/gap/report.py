@@ -1,0 +1,148 @@
+"""Console table and JSON of a :class:`~urident.gap.diagnose.GapResult`."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def _list(x) -> list[float]:
+    return [float(v) for v in np.asarray(x, float)]
+
+
+def result_dict(res) -> dict:
+    """The JSON document: baseline, findings, final (the required keys) and the details."""
+    return _clean(_result_dict(res))
+
+
+def _clean(x):
+    """JSON-safe: numpy scalars to Python, non-finite floats to None."""
+    if isinstance(x, dict):
+        return {str(k): _clean(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_clean(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _clean(x.tolist())
+    if isinstance(x, (bool, np.bool_)):
+        return bool(x)
+    if isinstance(x, (int, np.integer)):
+        return int(x)
+    if isinstance(x, (float, np.floating)):
+        return float(x) if np.isfinite(x) else None
+    return x
+
+
+def _result_dict(res) -> dict:
+    from urident.gap.diagnose import NO_EFFECT
+
+    b, f = res.baseline_rms, res.final_rms
+    steps = []
+    for k, scores in enumerate(res.steps):
+        steps.append({"step": k + 1, "candidates": [s.row() for s in scores]})
+    return {
+        "robot": res.robot,
+        "verdict": res.verdict,
+        "no_effect_found": not res.findings,
+        "baseline": {"e_n": float(res.baseline_e_n), "rms_nm": _list(b), "method": res.model.method,
+                     "friction_eps": float(res.model.model.friction_eps),
+                     "n_ident_samples": res.ident.n, "n_valid_samples": res.valid.n},
+        "findings": [x.as_dict() for x in res.findings],
+        "final": {"e_n": float(res.final_e_n), "rms_nm": _list(f),
+                  "shrink_pct": _list(np.where(b > 0, 100 * (1 - f / np.where(b > 0, b, 1)), 0.0)),
+                  "e_n_shrink_pct": float(100 * (1 - res.final_e_n / res.baseline_e_n))
+                  if res.baseline_e_n > 0 else 0.0},
+        "confounded": res.confounds,
+        "where": res.where,
+        "candidates": steps,
+        "settings": {"min_shrink_pct": res.config.min_shrink_pct, "level": res.config.level,
+                     "n_boot": res.config.n_boot, "n_folds": res.config.n_folds,
+                     "block_s": res.config.block_s, "no_effect_text": NO_EFFECT},
+    }
+
+
+def format_report(res, top: int = 12) -> str:
+    lines = []
+    b, f = res.baseline_rms, res.final_rms
+    lines.append(f"Sim-to-real gap, robot {res.robot}: baseline {res.model.method.upper()} "
+                 f"(tanh friction, eps = {res.model.model.friction_eps:g} rad/s), "
+                 f"{res.ident.n} identification / {res.valid.n} validation samples")
+    lines.append("")
+    lines.append("Where (validation residual, measured - predicted):")
+    lines.append("  joint   RMS [Nm]   share   bias [Nm]")
+    for jd in res.where["joints"]:
+        lines.append(f"  {jd['joint']:5d}  {jd['rms_nm']:9.3f}  {100 * jd['energy_share']:5.1f} %  "
+                     f"{jd['mean_nm']:+9.3f}")
+    for jd in res.where["joints"]:
+        for text in jd["regimes"]:
+            lines.append(f"  - {text}")
+    lines.append("")
+    lines.append("Which (first step: each candidate added alone; held-out gain, 95 % interval):")
+    lines.append("  effect                 joint  mode   variant                    gain [Nm^2]"
+                 "      95 % interval         shrink")
+    for s in (res.steps[0] if res.steps else [])[:top]:
+        c = s.candidate
+        mark = "*" if s.significant else " "
+        lines.append(f" {mark}{c.effect:22s} {s.joint + 1:5d}  {c.mode:5s}  {c.variant[:24]:24s}  "
+                     f"{s.gain:11.4g}  [{s.ci[0]:9.3g}, {s.ci[1]:9.3g}]  {s.shrink_pct:5.1f} %")
+    lines.append("  (* significant: lower bound > 0 and shrink >= "
+                 f"{res.config.min_shrink_pct:g} % of the joint's RMS)")
+    lines.append("")
+    if not res.findings:
+        lines.append("Findings: no unmodelled effect found")
+    else:
+        lines.append("Findings (greedy forward selection):")
+        for k, x in enumerate(res.findings):
+            mag = ", ".join(f"{key} = {_fmt(v)}" for key, v in x.magnitude.items() if key != "coefficients")
+            lines.append(f"  {k + 1}. {x.effect} on joint {x.joint} [{x.mode}] {x.variant}: "
+                         f"RMS {x.rms_before_nm:.3f} -> {x.rms_after_nm:.3f} N·m "
+                         f"({x.shrink_pct:.1f} % smaller), confidence {x.confidence}")
+            lines.append(f"     where: {x.regime}")
+            if mag:
+                lines.append(f"     fitted: {mag}")
+            if x.confounded_with:
+                lines.append(f"     confounded with: {'; '.join(x.confounded_with)} "
+                             "(the data cannot tell them apart)")
+    lines.append("")
+    lines.append("How far (validation):")
+    lines.append("  joint   baseline [Nm]   final [Nm]   shrink")
+    for j in range(6):
+        sh = 100 * (1 - f[j] / b[j]) if b[j] > 0 else 0.0
+        lines.append(f"  {j + 1:5d}  {b[j]:13.3f}  {f[j]:11.3f}  {sh:5.1f} %")
+    en_sh = 100 * (1 - res.final_e_n / res.baseline_e_n) if res.baseline_e_n > 0 else 0.0
+    lines.append(f"  e_N    {res.baseline_e_n:13.4g}  {res.final_e_n:11.4g}  {en_sh:5.1f} %")
+    return "\n".join(lines)
+
+
+def _fmt(v) -> str:
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    if isinstance(v, list):
+        return "[" + ", ".join(_fmt(x) for x in v) + "]"
+    return str(v)
+
+
+def maps_markdown(res) -> str:
+    """The findings and the residual maps as markdown (for a Rerun text view)."""
+    lines = ["# Sim-to-real gap", "", f"**Verdict:** {res.verdict}", ""]
+    for x in res.findings:
+        lines.append(f"- **{x.effect}** on joint {x.joint}: RMS {x.rms_before_nm:.3f} → "
+                     f"{x.rms_after_nm:.3f} N·m ({x.shrink_pct:.1f} %), {x.confidence}; {x.regime}")
+    lines.append("")
+    for jd in res.where["joints"]:
+        lines += [f"## Joint {jd['joint']}: RMS {jd['rms_nm']:.3f} N·m, "
+                  f"{100 * jd['energy_share']:.1f} % of the residual energy", ""]
+        for text in jd["regimes"]:
+            lines.append(f"- {text}")
+        for axis, bins in jd["maps"].items():
+            lines += ["", f"**{axis}**", "", "| bin | samples | energy | RMS [N·m] | mean [N·m] |",
+                      "| --- | ---: | ---: | ---: | ---: |"]
+            for b in bins:
+                rms = "-" if b["rms_nm"] is None else f"{b['rms_nm']:.3f}"
+                mean = "-" if b["mean_nm"] is None else f"{b['mean_nm']:+.3f}"
+                lines.append(f"| {b['label']} | {100 * b['sample_share']:.0f} % | "
+                             f"{100 * b['energy_share']:.0f} % | {rms} | {mean} |")
+        sp = jd["angle_spectrum"]
+        peaks = ", ".join(f"k={p['k']}: {p['amplitude_nm']:.3f}" for p in sp["peaks"])
+        fr = jd["frequency"]
+        lines += ["", f"Angle spectrum peaks [N·m]: {peaks}",
+                  f"Residual vs dτ̂/dt correlation {fr['corr_dtau']:+.2f} (delay {1000 * fr['delay_s']:.1f} ms)", ""]
+    return "\n".join(lines)
