@@ -1,0 +1,44 @@
+"""`urident demo --quick`: the newcomer's path, end to end (simulated controller, two runs,
+identification, validation, gap diagnosis, Rerun files), in a shortened mode."""
+
+import json
+
+from urident.cli.main import main
+from urident.logs import load_log
+
+
+def test_quick_demo_runs_the_whole_pipeline(tmp_path, capsys):
+    assert main(["demo", "--quick", "--out-root", str(tmp_path)]) == 0
+    (run_dir,) = [p for p in tmp_path.iterdir() if p.name.startswith("demo-")]
+    for name in ("ident.csv", "ident.yaml", "valid.csv", "params.yaml", "validation.json", "gap.json",
+                 "gap.rrd", "validation.rrd", "ident_live.rrd"):
+        assert (run_dir / name).is_file(), name
+    for log in ("ident.csv", "valid.csv"):
+        rec = load_log(run_dir / log)
+        assert rec.status == "completed" and len(rec.t) > 4000
+    validation = json.loads((run_dir / "validation.json").read_text())
+    assert {"e_n", "rms_nm", "rre_pct", "n_samples", "method"} <= set(validation)
+    gap = json.loads((run_dir / "gap.json").read_text())
+    assert gap["final"]["e_n"] <= gap["baseline"]["e_n"]
+    out = capsys.readouterr().out
+    assert "urident demo finished" in out and "gap diagnosis: e_N" in out
+
+
+def test_second_demo_does_not_clash(tmp_path):
+    """A second run gets a new directory (even in the same second) and a controller address
+    whose ports are free (a leftover controller keeps its own)."""
+    import socket
+
+    from urident.demo import PORTS, free_loopback_address, new_run_directory
+
+    first, second = new_run_directory(tmp_path), new_run_directory(tmp_path)
+    assert first != second and first.is_dir() and second.is_dir()
+    host = free_loopback_address()
+    busy = socket.socket()
+    busy.bind((host, PORTS[0]))
+    busy.listen()
+    try:
+        for _ in range(5):
+            assert free_loopback_address() != host
+    finally:
+        busy.close()
