@@ -165,3 +165,18 @@ def test_collision_model_distances(rng):
     q_folded = np.array([0.0, -np.pi / 2, 2.9, 0.0, 0.0, 0.0])  # forearm folded into the upper arm
     pin.computeDistances(model, data, geom, gdata, q_folded)
     assert min(r.min_distance for r in gdata.distanceResults) < 0.0
+
+
+def test_model_cli_json(capsys):
+    import json
+
+    from urident.cli.main import main
+
+    assert main(["model", "--robot", "ur5", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["robot"] == "ur5" and out["n_params"] == 78 and out["n_base"] == 52
+    assert {"name": "C5", "expression": "C5 + C6"} in out["base_parameters"]
+    assert main(["model", "--robot", "ur5", "--reduced", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["n_base"] == 33
+    assert main(["model", "--robot", "nope"]) == 2
+    assert "unknown robot 'nope'" in capsys.readouterr().err
