@@ -11,7 +11,7 @@ setup(
         Extension(
             "urident.model._regressor_kernel",
             sources=["urident/model/_regressor_kernel.c"],
-            extra_compile_args=["-O3"],
+            extra_compile_args=["-O3", "-fno-math-errno"],  # lets gcc fuse sin/cos
             optional=True,
         )
     ]

@@ -21,11 +21,16 @@ static inline void cross3(const double *a, const double *b, double *out) {
     out[0] = x; out[1] = y; out[2] = z;
 }
 
-/* out = Rot_axis(q)^T R0^T v */
+/* out = Rot_axis(q)^T R0^T v; r0 == NULL stands for the identity (most UR joints). */
 static inline void rot_t(const double *r0, int axis, double c, double s, const double *v, double *out) {
-    double u0 = r0[0] * v[0] + r0[3] * v[1] + r0[6] * v[2];
-    double u1 = r0[1] * v[0] + r0[4] * v[1] + r0[7] * v[2];
-    double u2 = r0[2] * v[0] + r0[5] * v[1] + r0[8] * v[2];
+    double u0, u1, u2;
+    if (r0) {
+        u0 = r0[0] * v[0] + r0[3] * v[1] + r0[6] * v[2];
+        u1 = r0[1] * v[0] + r0[4] * v[1] + r0[7] * v[2];
+        u2 = r0[2] * v[0] + r0[5] * v[1] + r0[8] * v[2];
+    } else {
+        u0 = v[0]; u1 = v[1]; u2 = v[2];
+    }
     if (axis == 2) {
         out[0] = c * u0 + s * u1; out[1] = c * u1 - s * u0; out[2] = u2;
     } else if (axis == 1) {
@@ -55,8 +60,13 @@ static void body_wrench(const double *w, const double *wd, const double *a, doub
     y[5][7] = -dy - wxz; y[5][8] = -dx + wyz; y[5][9] = wyy - wxx;
 }
 
-static void fill_sample(const double *geom, const unsigned char *axes, double eps, const double *q,
-                        const double *qd, const double *qdd, double *out) {
+static int is_identity(const double *r) {
+    return r[0] == 1.0 && r[1] == 0.0 && r[2] == 0.0 && r[3] == 0.0 && r[4] == 1.0 && r[5] == 0.0
+        && r[6] == 0.0 && r[7] == 0.0 && r[8] == 1.0;
+}
+
+static void fill_sample(const double *geom, const unsigned char *axes, const int *identity, double eps,
+                        const double *q, const double *qd, const double *qdd, double *out) {
     double w[3] = {0, 0, 0}, wd[3] = {0, 0, 0}, a[3], tmp[3], t1[3], t2[3];
     double lin[NJ][3], ang[NJ][3], y[6][10];
     const double *gravity = geom + 12 * NJ;
@@ -67,7 +77,7 @@ static void fill_sample(const double *geom, const unsigned char *axes, double ep
         memset(out + k * NP + 60, 0, sizeof(double) * 18);
     }
     for (int i = 0; i < NJ; i++) {
-        const double *p = geom + 12 * i, *r0 = geom + 12 * i + 3;
+        const double *p = geom + 12 * i, *r0 = identity[i] ? NULL : geom + 12 * i + 3;
         int axis = axes[i];
         double c = cos(q[i]), s = sin(q[i]);
         cross3(wd, p, t1);
@@ -121,9 +131,12 @@ static PyObject *fill(PyObject *self, PyObject *args) {
     if (ok) {
         const double *pq = q.buf, *pqd = qd.buf, *pqdd = qdd.buf;
         double *po = out.buf;
+        int identity[NJ];
+        for (int i = 0; i < NJ; i++) identity[i] = is_identity((const double *)geom.buf + 12 * i + 3);
         Py_BEGIN_ALLOW_THREADS
         for (Py_ssize_t k = 0; k < n; k++) {
-            fill_sample(geom.buf, axes.buf, eps, pq + NJ * k, pqd + NJ * k, pqdd + NJ * k, po + NJ * NP * k);
+            fill_sample(geom.buf, axes.buf, identity, eps, pq + NJ * k, pqd + NJ * k, pqdd + NJ * k,
+                        po + NJ * NP * k);
         }
         Py_END_ALLOW_THREADS
     }
