@@ -1,0 +1,53 @@
+"""``urident check-trajectory``: re-check a trajectory file densely before it is run."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "check-trajectory", help="check a trajectory file against every limit, densely",
+        description="Load a trajectory file and check position, velocity, acceleration, nominal "
+                    "torque, collision (Pinocchio/coal capsule distances) and rest at both ends at "
+                    "every controller tick. Prints the tightest margin per constraint and joint; exits "
+                    "non-zero naming the joint, time and margin of a violation.")
+    p.add_argument("file", help="trajectory file (YAML)")
+    p.add_argument("--rate", type=_positive_float, default=None,
+                   help="check rate [Hz] (default: the robot's controller rate)")
+    p.add_argument("--json", action="store_true", help="print the report as one JSON object")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from urident.excitation.check import JOINT_CONSTRAINTS, UNITS, check_trajectory
+    from urident.excitation.files import load_trajectory
+
+    loaded = load_trajectory(args.file)
+    report = check_trajectory(loaded.spec, loaded.trajectory, rate_hz=args.rate, limits=loaded.limits)
+    if args.json:
+        print(json.dumps({"file": str(args.file), **report.as_dict()}))
+    else:
+        traj = loaded.trajectory
+        print(f"{args.file}: {loaded.spec.description}, L = {traj.harmonics}, {traj.duration:g} s, "
+              f"{report.n_samples} samples at {report.rate_hz:g} Hz")
+        width = max(len(n) for n in report.joint_names)
+        units = {**UNITS, "rest": "rad/s, rad/s^2"}
+        print(f"  {'tightest margin':<28}" + "".join(f"{n:>{width + 2}}" for n in report.joint_names))
+        for c in JOINT_CONSTRAINTS:
+            print(f"  {c + ' [' + units[c] + ']':<28}"
+                  + "".join(f"{m:>{width + 2}.4g}" for m in report.margins[c]))
+        print(f"  min distance {report.min_distance_m:.4f} m ({report.min_distance_pair}), "
+              f"collision margin {report.collision_margin_m:.4f} m "
+              f"(clearance {report.limits.clearance_m:g} m)")
+        print("  ok" if report.ok else f"  {len(report.violations)} violation(s)")
+    report.raise_if_unsafe(str(args.file))
+    return 0
+
+
+def _positive_float(text: str) -> float:
+    value = float(text)
+    if not 0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a positive number, not {text}")
+    return value

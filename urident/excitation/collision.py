@@ -1,0 +1,193 @@
+"""Vectorised capsule distances (self-collision and floor/mount plane) in numpy, and the same
+distances from Pinocchio/coal for the final dense verification.
+
+Pairs are those of :func:`urident.model.pinocchio_model.collision_link_pairs` (capsule × capsule)
+and :func:`floor_checked_links` (capsule × floor plane ``z = floor_height_m``), in that order.
+
+Required distance per pair. The robot files' capsules are conservative, so some non-adjacent links
+are close by construction: on the UR5 the upper arm can never be more than 38 mm from the base
+capsule, and the forearm and wrist 2 capsules are always 3 mm apart. A single clearance cannot hold
+for such pairs, so each pair must keep ``min(clearance_m, NEAR_PAIR_FRACTION · d_max)`` where
+``d_max`` is the largest distance the pair can have anywhere in joint space (sampled
+deterministically), and pairs whose distance does not depend on the joint angles at all are not
+checked (like adjacent links). For all pairs that can move apart freely, this is ``clearance_m``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from urident.model.kinematics import frame_poses
+from urident.model.pinocchio_model import collision_link_pairs, floor_checked_links
+from urident.model.robot import RobotSpec
+
+NEAR_PAIR_FRACTION = 0.5
+FIXED_PAIR_TOL_M = 1e-6
+_EXTENT_SAMPLES = 4096
+_EPS = 1e-12
+
+
+@dataclass(frozen=True)
+class CapsuleModel:
+    """All capsules of one robot (C of them) and the checked pairs (P self + F floor)."""
+
+    frame: np.ndarray          # (C,) joint frame index 0..5 of each capsule, −1 for the base
+    a: np.ndarray              # (C, 3) segment start in its frame [m]
+    b: np.ndarray              # (C, 3) segment end [m]
+    radius: np.ndarray         # (C,)
+    capsule_names: tuple[str, ...]   # 'base_0', 'elbow_0', … (as in the coal geometry model)
+    first: np.ndarray          # (P,) capsule indices of the self-collision pairs
+    second: np.ndarray         # (P,)
+    floor: np.ndarray          # (F,) capsule indices checked against the floor plane
+    floor_height_m: float
+    pair_names: tuple[str, ...]  # (P + F,) 'shoulder_lift_0/base_0', …, 'wrist_1_0/floor'
+    required: np.ndarray       # (P + F,) minimum distance each pair must keep [m]; −inf: not checked
+
+    @property
+    def n_pairs(self) -> int:
+        return len(self.pair_names)
+
+    def world_segments(self, spec: RobotSpec, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Segment end points in the base frame, each (N, C, 3), for joint angles (N, 6)."""
+        rot, pos = frame_poses(spec, q)
+        n = rot.shape[0]
+        rot = np.concatenate([np.broadcast_to(np.eye(3), (n, 1, 3, 3)), rot[:, :6]], axis=1)
+        pos = np.concatenate([np.zeros((n, 1, 3)), pos[:, :6]], axis=1)
+        r = rot[:, self.frame + 1]                       # (N, C, 3, 3)
+        o = pos[:, self.frame + 1]                       # (N, C, 3)
+        pa = np.sum(r * self.a[None, :, None, :], axis=-1) + o
+        pb = np.sum(r * self.b[None, :, None, :], axis=-1) + o
+        return pa, pb
+
+    def distances(self, spec: RobotSpec, q: np.ndarray) -> np.ndarray:
+        """Signed distances (N, P + F) [m] (negative: penetration depth) for joint angles (N, 6)."""
+        pa, pb = self.world_segments(spec, np.atleast_2d(q))
+        self_d = (segment_distances(pa[:, self.first], pb[:, self.first],
+                                    pa[:, self.second], pb[:, self.second])
+                  - self.radius[self.first] - self.radius[self.second])
+        low = np.minimum(pa[:, self.floor, 2], pb[:, self.floor, 2])
+        floor_d = low - self.radius[self.floor] - self.floor_height_m
+        return np.concatenate([self_d, floor_d], axis=1)
+
+    def margins(self, spec: RobotSpec, q: np.ndarray) -> np.ndarray:
+        """Distance minus required distance (N, P + F); ≥ 0 when safe (+inf for unchecked pairs)."""
+        return self.distances(spec, q) - self.required
+
+
+def segment_distances(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray, q2: np.ndarray) -> np.ndarray:
+    """Distance between segments p1–q1 and p2–q2, all (..., 3), vectorised (Ericson, Real-Time
+    Collision Detection, 5.1.9, with the degenerate cases)."""
+    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
+    a = np.einsum("...i,...i->...", d1, d1)
+    e = np.einsum("...i,...i->...", d2, d2)
+    f = np.einsum("...i,...i->...", d2, r)
+    c = np.einsum("...i,...i->...", d1, r)
+    b = np.einsum("...i,...i->...", d1, d2)
+    a_ok, e_ok = a > _EPS, e > _EPS
+    safe_a, safe_e = np.where(a_ok, a, 1.0), np.where(e_ok, e, 1.0)
+    denom = a * e - b * b
+    s = np.where(denom > _EPS * np.maximum(a * e, _EPS),
+                 np.clip((b * f - c * e) / np.where(denom > 0, denom, 1.0), 0.0, 1.0), 0.0)
+    t = (b * s + f) / safe_e
+    s = np.where(t < 0, np.clip(-c / safe_a, 0.0, 1.0), np.where(t > 1, np.clip((b - c) / safe_a, 0.0, 1.0), s))
+    t = np.clip(t, 0.0, 1.0)
+    # Degenerate segments (points).
+    s = np.where(a_ok, s, 0.0)
+    t = np.where(a_ok, t, np.clip(f / safe_e, 0.0, 1.0))
+    s = np.where(a_ok & ~e_ok, np.clip(-c / safe_a, 0.0, 1.0), s)
+    t = np.where(e_ok, t, 0.0)
+    diff = (p1 + d1 * s[..., None]) - (p2 + d2 * t[..., None])
+    return np.sqrt(np.einsum("...i,...i->...", diff, diff))
+
+
+def capsule_model(spec: RobotSpec, clearance_m: float, floor_height_m: float = 0.0) -> CapsuleModel:
+    """The capsule model of ``spec`` with each pair's required distance for ``clearance_m``."""
+    geometry = _geometry(spec, float(floor_height_m))
+    d_max, fixed = _pair_extent(spec, float(floor_height_m))
+    required = np.minimum(clearance_m, NEAR_PAIR_FRACTION * d_max)
+    required[fixed] = -np.inf
+    return CapsuleModel(**geometry, required=required)
+
+
+def _geometry(spec: RobotSpec, floor_height_m: float) -> dict:
+    frame, a, b, radius, names = [], [], [], [], []
+    groups: dict[str, list[int]] = {}
+    links = [("base", -1, spec.base_collision)] + [(j.name, i, j.collision) for i, j in enumerate(spec.joints)]
+    for link, index, capsules in links:
+        groups[link] = []
+        for k, cap in enumerate(capsules):
+            groups[link].append(len(frame))
+            frame.append(index)
+            a.append(cap.a)
+            b.append(cap.b)
+            radius.append(cap.radius)
+            names.append(f"{link}_{k}")
+    first, second, pair_names = [], [], []
+    for link1, link2 in collision_link_pairs(spec):
+        for c1 in groups[link1]:
+            for c2 in groups[link2]:
+                first.append(c1)
+                second.append(c2)
+                pair_names.append(f"{names[c1]}/{names[c2]}")
+    floor = [c for link in floor_checked_links(spec) for c in groups[link]]
+    pair_names += [f"{names[c]}/floor" for c in floor]
+    return dict(frame=np.array(frame, dtype=int), a=np.array(a, dtype=float).reshape(-1, 3),
+                b=np.array(b, dtype=float).reshape(-1, 3), radius=np.array(radius, dtype=float),
+                capsule_names=tuple(names), first=np.array(first, dtype=int),
+                second=np.array(second, dtype=int), floor=np.array(floor, dtype=int),
+                floor_height_m=floor_height_m, pair_names=tuple(pair_names))
+
+
+_EXTENT_CACHE: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+
+
+def _pair_extent(spec: RobotSpec, floor_height_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Largest sampled distance of each pair and whether its distance is configuration-independent
+    (deterministic: a fixed-seed sample of joint space; cached per geometry)."""
+    key = (floor_height_m, spec.tool_xyz.tobytes(), repr(spec.base_collision),
+           repr([(j.xyz.tobytes(), j.rotation.tobytes(), j.axis, j.collision) for j in spec.joints]),
+           tuple(collision_link_pairs(spec)), tuple(floor_checked_links(spec)))
+    if key not in _EXTENT_CACHE:
+        unchecked = CapsuleModel(**_geometry(spec, floor_height_m), required=np.zeros(0))
+        q = np.random.default_rng(0).uniform(-np.pi, np.pi, (_EXTENT_SAMPLES, 6))
+        d = unchecked.distances(spec, q)
+        _EXTENT_CACHE[key] = (d.max(axis=0), (d.max(axis=0) - d.min(axis=0)) < FIXED_PAIR_TOL_M)
+    d_max, fixed = _EXTENT_CACHE[key]
+    return d_max.copy(), fixed.copy()
+
+
+class CoalDistances:
+    """The same pair distances from Pinocchio/coal (``pin.computeDistances``), one sample at a
+    time; columns in :class:`CapsuleModel` order."""
+
+    def __init__(self, spec: RobotSpec, capsules: CapsuleModel):
+        import pinocchio as pin
+
+        from urident.model.pinocchio_model import build_collision_model, build_model
+
+        self._pin = pin
+        self.model = build_model(spec)
+        self.geom = build_collision_model(spec, self.model, capsules.floor_height_m)
+        self.data = self.model.createData()
+        self.gdata = pin.GeometryData(self.geom)
+        index = {}
+        for k, pair in enumerate(self.geom.collisionPairs):
+            n1 = self.geom.geometryObjects[pair.first].name
+            n2 = self.geom.geometryObjects[pair.second].name
+            index[frozenset((n1, n2))] = k
+        try:
+            self.order = np.array([index[frozenset(name.split("/"))] for name in capsules.pair_names])
+        except KeyError as exc:  # pragma: no cover - both sides come from the same pair lists
+            raise RuntimeError(f"collision pair {exc} missing from the coal model") from None
+
+    def distances(self, q: np.ndarray) -> np.ndarray:
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        out = np.empty((q.shape[0], len(self.order)))
+        results = self.gdata.distanceResults
+        for n, qn in enumerate(q):
+            self._pin.computeDistances(self.model, self.data, self.geom, self.gdata, qn)
+            all_d = np.array([r.min_distance for r in results])
+            out[n] = all_d[self.order]
+        return out
