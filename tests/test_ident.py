@@ -307,3 +307,112 @@ def test_cli_identify_validate(spec, tmp_path, capsys):
     assert main(["identify", str(tmp_path / "id.csv"), "--robot", "ur5", "--out", str(out),
                  "--drive-gains", "1,2"]) == 2
     assert "--drive-gains" in capsys.readouterr().err
+
+
+# ----------------------------------------------------------------------------- friction extensions
+def test_velocity_displacement_integrates_qd_and_restarts_per_segment():
+    from urident.ident.friction import velocity_displacement
+
+    t = np.array([0.0, 0.01, 0.03, 0.04, 0.05, 0.06])
+    qd = np.tile(np.array([1.0, -2.0, 0, 0, 0, 0.5]), (6, 1))
+    x = velocity_displacement(t, qd)
+    np.testing.assert_allclose(x, (t - t[0])[:, None] * qd[0])
+    seg = np.array([0, 0, 0, 1, 1, 1])
+    x = velocity_displacement(t, qd, seg)
+    np.testing.assert_allclose(x[3:], (t[3:] - t[3])[:, None] * qd[0])
+
+
+def test_dahl_velocity_source_ignores_position_rounding(spec, sim):
+    """A Dahl distance of 1e-4 rad is the q resolution of some logs: the velocity-driven state does
+    not change when q is rounded to 1e-4 rad, the position-driven one does."""
+    rec, qdd, _ = sim
+    n = 1500
+    t, q, qd, a = rec.t[:n], rec.q[:n], rec.qd[:n], qdd[:n]
+    qr = np.round(q, 4)
+    for source, changes in (("velocity", False), ("position", True)):
+        cfg = ModelConfig(coulomb="dahl", dahl_rad=1e-4, dahl_source=source)
+        fine = design_matrix(spec, cfg, q, qd, a, t=t)
+        coarse = design_matrix(spec, cfg, qr, qd, a, t=t)
+        col = [k for k, nm in enumerate(base_for(spec, False).names) if nm.startswith("fc")]
+        diff = np.max(np.abs(fine[:, col] - coarse[:, col]))
+        assert (diff > 0.1) == changes, (source, diff)
+    # on finely sampled, consistent q and qd both sources give nearly the same state
+    cfg_v = ModelConfig(coulomb="dahl", dahl_rad=1e-3, dahl_source="velocity")
+    cfg_p = ModelConfig(coulomb="dahl", dahl_rad=1e-3, dahl_source="position")
+    np.testing.assert_allclose(design_matrix(spec, cfg_v, q, qd, a, t=t),
+                               design_matrix(spec, cfg_p, q, qd, a, t=t), atol=0.05)
+    # without timestamps the positions drive the state (documented fallback)
+    np.testing.assert_allclose(design_matrix(spec, cfg_v, q, qd, a), design_matrix(spec, cfg_p, q, qd, a))
+    with pytest.raises(ConfigError, match="dahl_source"):
+        ModelConfig(dahl_source="torque")
+
+
+def test_load_dependent_and_sqrt_viscous_friction_are_recovered(spec, sim):
+    """Torques with an extra load-dependent Coulomb term 0.02·|τ_L|·tanh(q̇/ε) and 0.5·sign(q̇)√|q̇|
+    are fitted by the 'load' and 'sqrtvisc' extras, whose coefficients are recovered."""
+    from urident.ident.design import column_names, nominal_link_torque
+    from urident.model import regressor_blocks
+
+    rec, qdd, tau = sim
+    blocks = regressor_blocks(spec, rec.q, rec.qd, qdd, 0.01)
+    load = np.abs(nominal_link_torque(spec, blocks)) * np.tanh(rec.qd / 0.01)
+    tau_x = tau + 0.02 * load + 0.5 * np.sign(rec.qd) * np.sqrt(np.abs(rec.qd))
+    data = Prepared(rec.t, rec.q, rec.qd, qdd, tau_x, spec.drive_gains)
+    cfg = ModelConfig(extras=("load", "sqrtvisc"))
+    names = column_names(spec, cfg)
+    assert names[-12:] == [f"fcl{j}" for j in range(1, 7)] + [f"fvs{j}" for j in range(1, 7)]
+    assert nonnegative_mask(spec, cfg)[-12:].all()
+    model = identify(spec, data, "ols", cfg)
+    np.testing.assert_allclose(model.values[-12:-6], 0.02, atol=2e-3)
+    np.testing.assert_allclose(model.values[-6:], 0.5, atol=0.05)
+    assert max(model.train_rms) < 1e-6
+
+
+def test_select_dahl_rad_by_blocked_cv(spec):
+    """Data generated with a Dahl friction state of δ = 3e-3 rad: CV inside the data picks it."""
+    from urident.ident.crossval import select_dahl_rad
+    from urident.ident.design import design_blocks
+
+    rec, qdd, _ = synthetic_recording(spec, duration_s=8.0, rate_hz=125.0, seed=11)
+    true = ModelConfig(coulomb="dahl", dahl_rad=3e-3, dahl_source="velocity")
+    b = base_for(spec, False)
+    w = design_blocks(spec, true, rec.q, rec.qd, qdd, t=rec.t)
+    tau = w @ (b.combination @ spec.nominal_params)
+    tau += np.random.default_rng(2).normal(0, 0.05, tau.shape)
+    data = Prepared(rec.t, rec.q, rec.qd, qdd, tau, spec.drive_gains)
+    best, scores = select_dahl_rad(spec, data, true, (3e-4, 1e-3, 3e-3, 1e-2), folds=4)
+    assert best.dahl_rad == 3e-3
+    assert [s.model.dahl_rad for s in scores] == [3e-4, 1e-3, 3e-3, 1e-2]
+
+
+def test_cli_presets_and_overrides(spec, tmp_path, capsys):
+    from urident.cli.main import main
+
+    rec, _, _ = synthetic_recording(spec, duration_s=8.0, rate_hz=125.0, current_noise_a=0.03, seed=7)
+    _write_log(rec, tmp_path / "id.csv")
+    out = tmp_path / "p.yaml"
+    assert main(["identify", str(tmp_path / "id.csv"), "--robot", "ur5", "--out", str(out),
+                 "--preset", "real-robot"]) == 0
+    report = capsys.readouterr().out
+    assert "dahl_rad selected by 5-fold blocked CV" in report and "preset real-robot" in report
+    m = load_params(out)
+    assert m.weighting == "joint" and m.model.reduced and m.model.coulomb == "dahl"
+    assert m.model.dahl_source == "velocity" and set(m.model.extras) == {"load", "sqrtvisc", "stribeck"}
+    from urident.ident.presets import DAHL_GRID
+
+    assert m.model.dahl_rad in DAHL_GRID
+    # --model best is the same preset; explicit options override it (fixed distance: no CV)
+    assert main(["identify", str(tmp_path / "id.csv"), "--robot", "ur5", "--out", str(out),
+                 "--model", "best", "--weighting", "none", "--dahl-rad", "1e-3", "--full",
+                 "--friction-extra", "load"]) == 0
+    assert "selected by" not in capsys.readouterr().out
+    m = load_params(out)
+    assert (m.weighting, m.model.dahl_rad, m.model.reduced, m.model.extras) == ("none", 1e-3, False, ("load",))
+    # the paper preset is the default configuration
+    assert main(["identify", str(tmp_path / "id.csv"), "--robot", "ur5", "--out", str(out),
+                 "--preset", "paper"]) == 0
+    m = load_params(out)
+    assert m.model == ModelConfig() and m.weighting == "none"
+    assert main(["identify", str(tmp_path / "id.csv"), "--robot", "ur5", "--out", str(out),
+                 "--dahl-rad", "auto"]) == 2
+    assert "needs a Dahl state" in capsys.readouterr().err

@@ -238,3 +238,13 @@ def test_cli_errors_are_one_line(capsys):
     assert main(["sim-controller", "--robot", "ur5", "--version", "5.11.0"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 3 and all(line.startswith("urident: error: ") for line in err)
+
+
+def test_process_passes_negative_initial_pose_and_reports_startup_failure():
+    from urident.simcontroller.process import SimControllerError, SimControllerProcess
+
+    q = [-0.47, -2.13, -2.19, 1.06, -0.36, -1.06]
+    with SimControllerProcess(host="127.0.0.39", robot="ur5e", initial_q=q) as sim:
+        assert sim.is_running()
+    with pytest.raises(SimControllerError, match="did not start"):
+        SimControllerProcess(host="127.0.0.39", robot="ur5e", version="not-a-version").start()

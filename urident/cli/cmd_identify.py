@@ -7,27 +7,48 @@ import sys
 from pathlib import Path
 
 
+PRESET_HELP = ("named configuration: 'paper' (the paper's method: full base set, tanh friction, plain "
+               "least squares) or 'real-robot' (urident's best on real UR logs: reduced base set, "
+               "per-joint weighting, Dahl presliding friction state driven by the integrated "
+               "velocity with its distance chosen by 5-fold blocked cross-validation on the "
+               "identification data, load-dependent Coulomb, square-root viscous and Stribeck friction; "
+               "equivalent to --reduced --weighting joint --coulomb dahl --dahl-source velocity "
+               "--dahl-rad auto --friction-extra load,sqrtvisc,stribeck --stribeck-vs 0.05). Options given explicitly override "
+               "the preset's")
+
+
 def add_model_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("model and estimation")
-    g.add_argument("--reduced", action="store_true",
+    g.add_argument("--preset", "--model", dest="preset", choices=("paper", "real-robot", "best"),
+                   default=None, help=PRESET_HELP + " ('--model best' is an alias of real-robot)")
+    g.add_argument("--reduced", action="store_true", default=None,
                    help="the paper's reduced model (33 base parameters) instead of the full one (52)")
-    g.add_argument("--friction-eps", type=float, default=0.01, metavar="E",
+    g.add_argument("--full", dest="reduced", action="store_false",
+                   help="the full base set (52 parameters; default unless a preset says otherwise)")
+    g.add_argument("--friction-eps", type=float, default=None, metavar="E",
                    help="tanh(qd/E) slope of the Coulomb friction [rad/s] (default 0.01, the paper's)")
-    g.add_argument("--coulomb", choices=("tanh", "dahl", "hold"), default="tanh",
-                   help="Coulomb friction model: tanh (paper); hold (tanh in motion, keeps the last "
-                        "motion's friction at standstill); dahl (presliding state in position)")
-    g.add_argument("--hold-velocity", type=float, default=3e-4, metavar="V",
+    g.add_argument("--coulomb", choices=("tanh", "dahl", "hold"), default=None,
+                   help="Coulomb friction model: tanh (paper, default); hold (tanh in motion, keeps the "
+                        "last motion's friction at standstill); dahl (presliding state driven by the "
+                        "displacement, see --dahl-source)")
+    g.add_argument("--hold-velocity", type=float, default=None, metavar="V",
                    help="hold model: |qd| [rad/s] needed to reverse the friction state (default 3e-4, "
                         "about 5x the standstill velocity noise of the UR10e logs)")
-    g.add_argument("--dahl-rad", type=float, default=0.01, metavar="D",
-                   help="Dahl presliding distance [rad] (default 0.01)")
-    g.add_argument("--friction-extra", default="", metavar="LIST",
-                   help="extra friction features, comma-separated: offset, stribeck, dahl")
-    g.add_argument("--stribeck-vs", type=float, default=0.05, metavar="V",
+    g.add_argument("--dahl-rad", default=None, metavar="D",
+                   help="Dahl presliding distance [rad] (default 0.01), or 'auto': chosen from "
+                        "5e-5..5e-4 rad by 5-fold blocked cross-validation on the identification data")
+    g.add_argument("--dahl-source", choices=("position", "velocity"), default=None,
+                   help="displacement driving the Dahl state: position (logged q, default) or "
+                        "velocity (integral of the logged qd, independent of how finely q is stored)")
+    g.add_argument("--friction-extra", default=None, metavar="LIST",
+                   help="extra friction features, comma-separated: offset, stribeck, dahl, load "
+                        "(load-dependent Coulomb |tau_nominal|*z), sqrtvisc (sign(qd)*sqrt|qd|); "
+                        "'none' for no extras")
+    g.add_argument("--stribeck-vs", type=float, default=None, metavar="V",
                    help="Stribeck velocity [rad/s] (default 0.05)")
-    g.add_argument("--weighting", choices=("none", "joint"), default="none",
-                   help="none: the paper's plain least squares; joint: rows divided by each joint's "
-                        "residual std from a first fit")
+    g.add_argument("--weighting", choices=("none", "joint"), default=None,
+                   help="none: the paper's plain least squares (default); joint: rows divided by each "
+                        "joint's residual std from a first fit")
     g.add_argument("--regularisation", type=float, default=None, metavar="L",
                    help="weight of the prior towards the robot file's parameters in the consistent "
                         "method (default 1e-3)")
@@ -96,12 +117,49 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def model_config(args: argparse.Namespace):
-    from urident.ident import ModelConfig
+def preset_name(args: argparse.Namespace) -> str | None:
+    name = getattr(args, "preset", None)
+    return "real-robot" if name == "best" else name
 
-    extras = tuple(x.strip() for x in (args.friction_extra or "").split(",") if x.strip())
-    return ModelConfig(reduced=args.reduced, friction_eps=args.friction_eps, coulomb=args.coulomb,
-                       dahl_rad=args.dahl_rad, hold_velocity=args.hold_velocity, extras=extras, stribeck_vs=args.stribeck_vs)
+
+def model_config(args: argparse.Namespace):
+    """(ModelConfig, weighting, select_dahl_rad) from the preset (if any) and explicit options."""
+    from dataclasses import replace
+
+    from urident.errors import ConfigError
+    from urident.ident import ModelConfig
+    from urident.ident.presets import get_preset
+
+    name = preset_name(args)
+    preset = get_preset(name) if name else None
+    base = preset.model if preset else ModelConfig()
+    weighting = args.weighting or (preset.weighting if preset else "none")
+    select = bool(preset and preset.select_dahl_rad)
+    changes = {}
+    for attr in ("reduced", "friction_eps", "coulomb", "hold_velocity", "dahl_source", "stribeck_vs"):
+        value = getattr(args, attr, None)
+        if value is not None:
+            changes[attr] = value
+    if args.dahl_rad is not None:
+        if str(args.dahl_rad).strip().lower() == "auto":
+            select = True
+        else:
+            try:
+                changes["dahl_rad"] = float(args.dahl_rad)
+            except ValueError:
+                raise ConfigError(f"--dahl-rad {args.dahl_rad!r}: expected a distance [rad] or 'auto'") from None
+            select = False
+    if args.friction_extra is not None:
+        text = args.friction_extra.strip()
+        changes["extras"] = () if text.lower() == "none" else tuple(
+            x.strip() for x in text.split(",") if x.strip())
+    model = replace(base, **changes)
+    uses_dahl = model.coulomb == "dahl" or "dahl" in model.extras
+    if select and not uses_dahl:
+        if str(args.dahl_rad or "").strip().lower() == "auto":
+            raise ConfigError("--dahl-rad auto needs a Dahl state: --coulomb dahl or --friction-extra dahl")
+        select = False   # the preset's δ selection is moot once the Dahl state is overridden
+    return model, weighting, select
 
 
 def sibling(path: Path, method: str) -> Path:
@@ -118,16 +176,25 @@ def run(args: argparse.Namespace) -> int:
     from urident.model import load_robot
 
     spec = load_robot(args.robot)
-    model = model_config(args)
+    model, weighting, select = model_config(args)
     config = preprocess_config(args)
     gains = resolve_drive_gains(spec, args.drive_gains)
     recordings = [load_log_from_args(path, args, robot=spec.name) for path in args.logs]
     data = prepare(recordings, spec, config, gains)
+    cv_text = ""
+    if select:
+        from urident.ident.crossval import select_dahl_rad
+        from urident.ident.presets import CV_FOLDS, DAHL_GRID
+
+        model, scores = select_dahl_rad(spec, data, model, DAHL_GRID, weighting, "ols", CV_FOLDS)
+        cv_text = (f"dahl_rad selected by {CV_FOLDS}-fold blocked CV on the identification data: "
+                   f"{model.dahl_rad:g} rad (mean held-out RMS [N·m] per distance: "
+                   + ", ".join(f"{s.model.dahl_rad:g}: {s.mean_rms_nm:.3f}" for s in scores) + ")")
     methods = ("ols", "bounded", "consistent") if args.method == "all" else (args.method,)
     if args.urdf and "consistent" not in methods:
         raise ConfigError("--urdf needs physically consistent parameters: use --method consistent or all")
     reg = DEFAULT_REGULARISATION if args.regularisation is None else args.regularisation
-    models = identify_all(spec, data, methods, model, args.weighting, reg, config)
+    models = identify_all(spec, data, methods, model, weighting, reg, config)
     out = Path(args.out)
     primary = "consistent" if args.method == "all" else args.method
     save_params(models[primary], out)
@@ -137,6 +204,10 @@ def run(args: argparse.Namespace) -> int:
             save_params(models[m], sibling(out, m))
             written.append(str(sibling(out, m)))
     text = comparison_report(models)
+    if preset_name(args):
+        text = f"preset {preset_name(args)}\n" + text
+    if cv_text:
+        text = cv_text + "\n" + text
     print(text)
     if args.report:
         Path(args.report).write_text(text + "\n")

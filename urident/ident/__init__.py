@@ -9,6 +9,7 @@ Main entry points::
     predict(identified, spec, q, qd, qdd) -> (N, 6) torques
     validate(identified, spec, prepared) -> ValidationResult
     save_params(identified, path) / load_params(path)
+    resolve_preset(spec, prepared, "real-robot") -> PresetChoice (model, weighting, CV scores)
 """
 
 from urident.ident.design import ModelConfig, design_matrix
@@ -16,13 +17,14 @@ from urident.ident.estimate import Estimate
 from urident.ident.identify import (METHODS, IdentifiedModel, identify, identify_all, predict,
                                     predict_prepared, prepare)
 from urident.ident.params_file import ParamsFileError, load_params, save_params
+from urident.ident.presets import PRESETS, PresetChoice, resolve_preset
 from urident.ident.preprocess import (PreprocessConfig, Prepared, accelerations, concatenate,
                                       preprocess, zero_phase_lowpass)
 from urident.ident.torque import estimate_drive_gains, parse_drive_gains, torque_from_current
 from urident.ident.validate import ValidationResult, metrics, validate
 
 __all__ = [
-    "METHODS", "Estimate", "IdentifiedModel", "ModelConfig", "ParamsFileError", "PreprocessConfig",
+    "METHODS", "PRESETS", "Estimate", "PresetChoice", "resolve_preset", "IdentifiedModel", "ModelConfig", "ParamsFileError", "PreprocessConfig",
     "Prepared", "ValidationResult", "accelerations", "concatenate", "design_matrix",
     "estimate_drive_gains", "identify", "identify_all", "load_params", "metrics", "parse_drive_gains",
     "predict", "predict_prepared", "prepare", "preprocess", "save_params", "torque_from_current",

@@ -35,7 +35,7 @@ def cross_validate(spec, data: Prepared, model: ModelConfig, weighting: str = "n
     """Blocked CV score. ``target`` (N, 6): the torques held-out blocks are scored against
     (default ``data.tau``; pass the unfiltered torques when ``data.tau`` was low-passed, so that
     a torque filter is judged by how well it predicts the raw measurement)."""
-    w = design_matrix(spec, model, data.q, data.qd, data.qdd, data.segment)
+    w = design_matrix(spec, model, data.q, data.qd, data.qdd, data.segment, data.t)
     y = data.tau.reshape(-1)
     y_target = y if target is None else np.asarray(target, dtype=float).reshape(-1)
     n = len(data)
@@ -61,3 +61,19 @@ def select(spec, data: Prepared, candidates: Iterable[tuple[ModelConfig, str]], 
     """Scores of (model, weighting) candidates, best first."""
     scores = [cross_validate(spec, data, m, w, method, folds, target) for m, w in candidates]
     return sorted(scores, key=lambda s: s.mean_rms_nm)
+
+
+def select_dahl_rad(spec, data: Prepared, model: ModelConfig, grid: Iterable[float],
+                    weighting: str = "none", method: str = "ols", folds: int = 5,
+                    target: np.ndarray | None = None) -> tuple[ModelConfig, list[CVScore]]:
+    """The Dahl presliding distance δ of ``model`` chosen from ``grid`` by blocked CV (lowest mean
+    held-out RMS). Returns the model with that δ and the scores in grid order."""
+    from dataclasses import replace
+
+    grid = [float(d) for d in grid]
+    if not grid:
+        raise ValueError("empty grid of Dahl distances")
+    scores = [cross_validate(spec, data, replace(model, dahl_rad=d), weighting, method, folds, target)
+              for d in grid]
+    best = min(range(len(grid)), key=lambda k: scores[k].mean_rms_nm)
+    return replace(model, dahl_rad=grid[best]), scores

@@ -14,8 +14,9 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from urident.errors import ConfigError
-from urident.ident.friction import (COULOMB_MODELS, EXTRA_FEATURES, EXTRA_PREFIX, NONNEGATIVE_EXTRAS,
-                                    dahl_state, hold_state, stribeck)
+from urident.ident.friction import (COULOMB_MODELS, DAHL_SOURCES, EXTRA_FEATURES, EXTRA_PREFIX,
+                                    NONNEGATIVE_EXTRAS, dahl_state, hold_state, sqrt_viscous, stribeck,
+                                    velocity_displacement)
 from urident.model.parameters import COULOMB_OFFSET, parameter_names
 
 _NONNEG_STANDARD_PREFIX = ("m", "A", "B", "C", "IM", "fv", "fc")
@@ -30,8 +31,9 @@ class ModelConfig:
     coulomb: str = "tanh"           # 'tanh' (paper), 'dahl' or 'hold' (history-driven, friction.py)
     dahl_rad: float = 0.01          # [rad] Dahl presliding distance δ
     hold_velocity: float = 3e-4     # [rad/s] 'hold': |q̇| needed to reverse the friction state
-    extras: tuple[str, ...] = ()    # extra friction features: offset, stribeck, dahl
+    extras: tuple[str, ...] = ()    # extra friction features: offset, stribeck, dahl, load, sqrtvisc
     stribeck_vs: float = 0.05       # [rad/s] Stribeck velocity
+    dahl_source: str = "position"   # Dahl displacement from 'position' (q) or 'velocity' (∫q̇ dt)
 
     def __post_init__(self) -> None:
         if not self.friction_eps > 0:
@@ -44,6 +46,8 @@ class ModelConfig:
                 raise ConfigError(f"friction feature {x!r} unknown (known: {', '.join(EXTRA_FEATURES)})")
         if len(set(self.extras)) != len(self.extras):
             raise ConfigError(f"friction features repeated: {', '.join(self.extras)}")
+        if self.dahl_source not in DAHL_SOURCES:
+            raise ConfigError(f"dahl_source {self.dahl_source!r} unknown (known: {', '.join(DAHL_SOURCES)})")
         if not (self.dahl_rad > 0 and self.stribeck_vs > 0 and self.hold_velocity > 0):
             raise ConfigError("dahl_rad, stribeck_vs and hold_velocity must be positive")
 
@@ -89,7 +93,9 @@ def column_expressions(spec, config: ModelConfig) -> list[str]:
     base = base_for(spec, config.reduced)
     expr = list(base.expressions())
     desc = {"offset": "constant torque offset", "stribeck": "Stribeck term tanh(qd/eps)*exp(-(qd/vs)^2)",
-            "dahl": "Dahl hysteresis state"}
+            "dahl": "Dahl hysteresis state",
+            "load": "load-dependent Coulomb friction |tau_nominal|*z",
+            "sqrtvisc": "sub-linear viscous friction sign(qd)*sqrt(|qd|)"}
     for x in config.extras:
         expr += [f"{desc[x]} of joint {j + 1}" for j in range(6)]
     return expr
@@ -111,15 +117,28 @@ def nonnegative_mask(spec, config: ModelConfig) -> np.ndarray:
     return np.array(mask)
 
 
-def design_blocks(spec, config: ModelConfig, q, qd, qdd, segment=None) -> np.ndarray:
-    """(N, 6, n) regressor of the identification model (see module doc)."""
+def _dahl(config: ModelConfig, q, qd, t, segment) -> np.ndarray:
+    if config.dahl_source == "velocity" and t is not None:
+        return dahl_state(velocity_displacement(t, qd, segment), config.dahl_rad, segment)
+    return dahl_state(q, config.dahl_rad, segment)
+
+
+def nominal_link_torque(spec, blocks: np.ndarray) -> np.ndarray:
+    """(N, 6) link-side rigid-body torque of the robot file's nominal parameters, from the (N, 6, 78)
+    regressor (the ten parameters of the six bodies only: no rotor inertia, no friction)."""
+    return blocks[:, :, :60] @ np.asarray(spec.nominal_params, dtype=float)[:60]
+
+
+def design_blocks(spec, config: ModelConfig, q, qd, qdd, segment=None, t=None) -> np.ndarray:
+    """(N, 6, n) regressor of the identification model (see module doc). ``t`` (N,) timestamps are
+    needed by ``dahl_source='velocity'`` (without them the Dahl state follows the positions)."""
     from urident.model import regressor_blocks
 
     base = base_for(spec, config.reduced)
     blocks = regressor_blocks(spec, q, qd, qdd, config.friction_eps)
     joints = np.arange(6)
     if config.coulomb == "dahl":
-        blocks[:, joints, COULOMB_OFFSET + joints] = dahl_state(q, config.dahl_rad, segment)
+        blocks[:, joints, COULOMB_OFFSET + joints] = _dahl(config, q, qd, t, segment)
     elif config.coulomb == "hold":
         blocks[:, joints, COULOMB_OFFSET + joints] = hold_state(qd, config.friction_eps,
                                                                 config.hold_velocity, segment)
@@ -131,14 +150,18 @@ def design_blocks(spec, config: ModelConfig, q, qd, qdd, segment=None) -> np.nda
             values = np.ones((n, 6))
         elif x == "stribeck":
             values = stribeck(qd, config.friction_eps, config.stribeck_vs)
+        elif x == "load":
+            values = np.abs(nominal_link_torque(spec, blocks)) * blocks[:, joints, COULOMB_OFFSET + joints]
+        elif x == "sqrtvisc":
+            values = sqrt_viscous(qd)
         else:
-            values = dahl_state(q, config.dahl_rad, segment)
+            values = _dahl(config, q, qd, t, segment)
         extra[:, joints, joints] = values
         out.append(extra)
     return np.concatenate(out, axis=2)
 
 
-def design_matrix(spec, config: ModelConfig, q, qd, qdd, segment=None) -> np.ndarray:
+def design_matrix(spec, config: ModelConfig, q, qd, qdd, segment=None, t=None) -> np.ndarray:
     """Stacked (6N, n) regressor, row 6k + j."""
-    blocks = design_blocks(spec, config, q, qd, qdd, segment)
+    blocks = design_blocks(spec, config, q, qd, qdd, segment, t)
     return blocks.reshape(-1, blocks.shape[2])

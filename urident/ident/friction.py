@@ -20,6 +20,21 @@ Coulomb column), one per joint:
 * ``offset``: a constant per joint (asymmetric Coulomb friction, current-sensor bias, unmodelled
   static load); name ``fo<j>``.
 * ``stribeck``: tanh(q̇/ε)·exp(−(q̇/v_s)²), the extra static friction near zero speed; ``fs<j>``.
+* ``load``: |τ_L,j|·z_j, load-dependent Coulomb friction of a harmonic drive (the tooth and bearing
+  forces, hence the friction, grow with the transmitted torque). τ_L is the link-side rigid-body
+  torque of the robot file's nominal parameters at (q, q̇, q̈) (rotor inertia and friction
+  excluded), z_j the model's Coulomb state (tanh, dahl or hold); name ``fcl<j>``, coefficient ≥ 0.
+* ``sqrtvisc``: sign(q̇)·sqrt(|q̇|), a concave (sub-linear) viscous term, as the lubricant film of a
+  harmonic drive gives; name ``fvs<j>``, coefficient ≥ 0.
+
+Displacement for the Dahl state (``dahl_source``). ``position``: the differences of the logged q.
+``velocity``: the displacement integrated from the logged q̇ (trapezoid rule on the timestamps),
+which does not depend on how finely the log stores positions (Dahl distances are ~1e-4 rad, and
+some logs store q with 4 decimals, i.e. 1e-4 rad steps, while q̇ keeps its full resolution). Without
+timestamps (``t=None``) the position differences are used.
+
+Names of the extra columns start with ``fo``, ``fs``, ``fh``, ``fcl`` and ``fvs`` so that code
+classifying friction columns by the ``fc``/``fv`` prefixes keeps working.
 """
 
 from __future__ import annotations
@@ -27,9 +42,30 @@ from __future__ import annotations
 import numpy as np
 
 COULOMB_MODELS = ("tanh", "dahl", "hold")
-EXTRA_FEATURES = ("offset", "stribeck", "dahl")
-EXTRA_PREFIX = {"offset": "fo", "stribeck": "fs", "dahl": "fh"}
-NONNEGATIVE_EXTRAS = frozenset({"stribeck", "dahl"})
+EXTRA_FEATURES = ("offset", "stribeck", "dahl", "load", "sqrtvisc")
+EXTRA_PREFIX = {"offset": "fo", "stribeck": "fs", "dahl": "fh", "load": "fcl", "sqrtvisc": "fvs"}
+NONNEGATIVE_EXTRAS = frozenset({"stribeck", "dahl", "load", "sqrtvisc"})
+DAHL_SOURCES = ("position", "velocity")
+
+
+def velocity_displacement(t: np.ndarray, qd: np.ndarray, segment: np.ndarray | None = None) -> np.ndarray:
+    """(N, 6) displacement ∫q̇ dt (trapezoid rule on the timestamps ``t``), restarting at 0 in each
+    segment: a position signal as fine as the velocity signal (module doc)."""
+    t = np.asarray(t, dtype=float)
+    qd = np.asarray(qd, dtype=float)
+    steps = 0.5 * (qd[1:] + qd[:-1]) * np.diff(t)[:, None]
+    x = np.vstack([np.zeros((1, qd.shape[1])), np.cumsum(steps, axis=0)])
+    if segment is not None:
+        seg = np.asarray(segment)
+        starts = np.r_[0, np.flatnonzero(np.diff(seg) != 0) + 1]
+        first = np.repeat(starts, np.diff(np.r_[starts, len(seg)]))
+        x = x - x[first]
+    return x
+
+
+def sqrt_viscous(qd: np.ndarray) -> np.ndarray:
+    qd = np.asarray(qd, dtype=float)
+    return np.sign(qd) * np.sqrt(np.abs(qd))
 
 
 def dahl_state(q: np.ndarray, delta: float, segment: np.ndarray | None = None) -> np.ndarray:

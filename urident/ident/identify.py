@@ -86,7 +86,7 @@ def identify_all(spec, data: Prepared | Sequence[Prepared], methods: Sequence[st
     for m in methods:
         if m not in METHODS:
             raise ConfigError(f"method {m!r} unknown (known: {', '.join(METHODS)}, all)")
-    w = design_matrix(spec, model, data.q, data.qd, data.qdd, data.segment)
+    w = design_matrix(spec, model, data.q, data.qd, data.qdd, data.segment, data.t)
     y = data.tau.reshape(-1)
     names = column_names(spec, model)
     out = {}
@@ -121,12 +121,13 @@ def check_compatible(identified: IdentifiedModel, spec, where: str = "parameters
                           f"({'reduced' if identified.model.reduced else 'full'} base set)")
 
 
-def predict(identified: IdentifiedModel, spec, q, qd, qdd, segment=None) -> np.ndarray:
-    """(N, 6) predicted joint torques [N·m] at states (q, q̇, q̈) (N, 6)."""
+def predict(identified: IdentifiedModel, spec, q, qd, qdd, segment=None, t=None) -> np.ndarray:
+    """(N, 6) predicted joint torques [N·m] at states (q, q̇, q̈) (N, 6); ``t`` (N,) timestamps for
+    models whose friction state integrates q̇ (``dahl_source='velocity'``)."""
     check_compatible(identified, spec)
-    w = design_matrix(spec, identified.model, q, qd, qdd, segment)
+    w = design_matrix(spec, identified.model, q, qd, qdd, segment, t)
     return (w @ identified.values).reshape(-1, 6)
 
 
 def predict_prepared(identified: IdentifiedModel, spec, data: Prepared) -> np.ndarray:
-    return predict(identified, spec, data.q, data.qd, data.qdd, data.segment)
+    return predict(identified, spec, data.q, data.qd, data.qdd, data.segment, data.t)

@@ -60,6 +60,7 @@ class SimControllerProcess:
         self.log_lines: deque[str] = deque(maxlen=2000)
         self.returncode: int | None = None
         self._ready = threading.Event()
+        self._listening = False
         self._threads: list[threading.Thread] = []
 
     # ------------------------------------------------------------ command line
@@ -73,7 +74,8 @@ class SimControllerProcess:
         for fault in self.faults:
             cmd += ["--fault", fault]
         if self.initial_q is not None:
-            cmd += ["--initial-q", ",".join(repr(x) for x in self.initial_q)]
+            # "=" form: a value starting with "-" would otherwise be read as an option.
+            cmd += ["--initial-q=" + ",".join(repr(x) for x in self.initial_q)]
         return cmd + self.extra_args
 
     @property
@@ -97,7 +99,7 @@ class SimControllerProcess:
                          threading.Thread(target=self._read_stderr, daemon=True)]
         for thread in self._threads:
             thread.start()
-        if not self._ready.wait(self.ready_timeout_s) or not self.is_running():
+        if not self._ready.wait(self.ready_timeout_s) or not self._listening or not self.is_running():
             if self.process.poll() is not None:
                 for thread in self._threads:
                     thread.join(timeout=2.0)
@@ -135,6 +137,7 @@ class SimControllerProcess:
         for line in self.process.stdout:
             line = line.rstrip("\n")
             if line.startswith(READY_PREFIX):
+                self._listening = True
                 self._ready.set()
             elif line.startswith(STATS_PREFIX):
                 try:
