@@ -114,6 +114,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_model_arguments(p)
     add_preprocess_arguments(p, trim_default=True)
     add_log_arguments(p)
+    from urident.viz.cli_args import add_rerun_arguments
+
+    add_rerun_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -175,6 +178,9 @@ def run(args: argparse.Namespace) -> int:
     from urident.logs import load_log_from_args
     from urident.model import load_robot
 
+    from urident.viz.cli_args import check_rerun_args
+
+    check_rerun_args(args)  # before the heavy work: a missing viewer fails at once
     spec = load_robot(args.robot)
     model, weighting, select = model_config(args)
     config = preprocess_config(args)
@@ -225,5 +231,25 @@ def run(args: argparse.Namespace) -> int:
         for m, mod in models.items():
             written.append(str(plot_torques(validate(mod, spec, data), png / f"fit_{m}.png")))
         written.append(str(plot_base_parameters(models, png / "base_parameters.png")))
+    written += _to_rerun(args, spec, models, data, text)
     print("wrote " + ", ".join(written), file=sys.stderr)
     return 0
+
+
+def _to_rerun(args: argparse.Namespace, spec, models, data, report: str) -> list[str]:
+    """The fit on the identification data (measured vs predicted per method) and the report."""
+    from urident.viz.cli_args import open_recording_from_args
+
+    rec = open_recording_from_args(args, "urident_identify")
+    if rec is None:
+        return []
+    from urident.ident import validate
+    from urident.viz import close_recording, log_torque_results
+    from urident.viz.torque_views import log_text
+
+    fits = [(m, validate(mod, spec, data)) for m, mod in models.items()]
+    log_torque_results(rec, spec.joint_names, fits, prefix="identify",
+                       title="Identification fit (identification data)")
+    log_text(rec, "identify/report", "```\n" + report + "\n```")
+    close_recording(rec)
+    return [args.rerun_save] if args.rerun_save else []

@@ -26,6 +26,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--png", metavar="DIR", default=None, help="write measured-vs-predicted plots here")
     add_preprocess_arguments(p, trim_default=False)
     add_log_arguments(p)
+    from urident.viz.cli_args import add_rerun_arguments
+
+    add_rerun_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -37,6 +40,9 @@ def run(args: argparse.Namespace) -> int:
     from urident.logs import load_log_from_args
     from urident.model import load_robot
 
+    from urident.viz.cli_args import check_rerun_args
+
+    check_rerun_args(args)  # before the heavy work: a missing viewer fails at once
     models = [(path, load_params(path)) for path in args.params]
     robot = args.robot or models[0][1].robot
     spec = load_robot(robot)
@@ -63,6 +69,7 @@ def run(args: argparse.Namespace) -> int:
         if len(results) > 1:
             payload["results"] = [dict(r.as_dict(), params=str(p)) for p, r in results]
         Path(args.json_out).write_text(json.dumps(payload, indent=2) + "\n")
+    _to_rerun(args, spec, results)
     if args.png:
         from urident.viz.plots import plot_torques
 
@@ -74,3 +81,18 @@ def run(args: argparse.Namespace) -> int:
                                      f"mean RMS {r.mean_rms_nm:.2f} N·m")
             print(f"wrote {png}", file=sys.stderr)
     return 0
+
+
+def _to_rerun(args: argparse.Namespace, spec, results) -> None:
+    from urident.viz.cli_args import open_recording_from_args
+
+    rec = open_recording_from_args(args, "urident_validate")
+    if rec is None:
+        return
+    from urident.viz import close_recording, log_torque_results
+
+    log_torque_results(rec, spec.joint_names, [(Path(p).stem.replace(".", "_"), r) for p, r in results],
+                       prefix="validate", title="Validation: measured vs predicted torque")
+    close_recording(rec)
+    print(f"Rerun recording {'saved to ' + args.rerun_save if args.rerun_save else 'sent to the viewer'}",
+          file=sys.stderr)

@@ -45,6 +45,7 @@ _EXPORTS = {
     "LiveStats": "live",
     "LiveStreamer": "live",
     "log_recording_comparison": "replay",
+    "log_torque_results": "results",
     "CausalAcceleration": "prediction",
     "load_prediction_params": "prediction",
     "measured_torque": "prediction",
