@@ -42,3 +42,20 @@ def test_second_demo_does_not_clash(tmp_path):
             assert free_loopback_address() != host
     finally:
         busy.close()
+
+
+def test_readme_post_hoc_examples_on_the_sample_logs(tmp_path, capsys):
+    """The README's post-hoc commands, as written, on logs/sample_*.csv."""
+    from pathlib import Path
+
+    logs = Path(__file__).resolve().parent.parent / "logs"
+    ident, valid = str(logs / "sample_ident.csv"), str(logs / "sample_valid.csv")
+    params = str(tmp_path / "params.yaml")
+    assert main(["identify", ident, "--robot", "ur5", "--method", "all", "--out", params]) == 0
+    assert main(["validate", valid, "--params", params, "--json-out", str(tmp_path / "v.json")]) == 0
+    assert json.loads((tmp_path / "v.json").read_text())["e_n"] < 0.05
+    assert main(["view", valid, "--params", params, "--save", str(tmp_path / "s.rrd")]) == 0
+    assert main(["gap", "--robot", "ur5", "--ident", ident, "--valid", valid,
+                 "--json-out", str(tmp_path / "gap.json")]) == 0
+    gap = json.loads((tmp_path / "gap.json").read_text())
+    assert len(gap["baseline"]["rms_nm"]) == 6

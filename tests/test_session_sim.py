@@ -4,7 +4,6 @@ process (ur_rtde and the controller must not share a process; SIGINT needs a pro
 
 from __future__ import annotations
 
-import os
 import re
 import signal
 import subprocess

@@ -38,14 +38,14 @@ Unknown keys are rejected; every error is a one-line :class:`ConfigError` naming
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import yaml
+
+from urident.fileio import write_text_atomic
 
 from urident import __version__
 from urident.errors import ConfigError
@@ -141,17 +141,7 @@ def write_trajectory(path: str | Path, document: dict[str, Any], header: str = "
     path = Path(path)
     text = yaml.safe_dump(document, sort_keys=False, default_flow_style=None, width=120)
     comment = "".join(f"# {line}\n" for line in header.splitlines()) if header else ""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(comment + text)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    write_text_atomic(path, comment + text, fsync=False)
 
 
 def load_trajectory(path: str | Path) -> TrajectoryFile:

@@ -5,12 +5,12 @@ from __future__ import annotations
 import datetime as _dt
 import hashlib
 import math
-import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
 import yaml
+
+from urident.fileio import write_text_atomic
 
 from urident.errors import LogFormatError
 
@@ -35,35 +35,8 @@ def sha256_file(path: str | Path) -> str:
 def write_sidecar(path: str | Path, data: dict[str, Any]) -> None:
     """Write ``data`` as YAML atomically (temp file, fsync, rename), so a crash leaves either the
     old or the new sidecar, never half of one."""
-    path = Path(path)
     text = yaml.safe_dump(_plain(data), sort_keys=False, default_flow_style=None, width=100)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    _fsync_dir(path.parent)
-
-
-def _fsync_dir(directory: Path) -> None:
-    try:
-        fd = os.open(directory, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
+    write_text_atomic(path, text)
 
 
 def _plain(value: Any) -> Any:

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from urident.model.kinematics import AXIS_INDEX, joint_rotations
+from urident.model.kinematics import AXIS_INDEX
 from urident.model.parameters import COULOMB_OFFSET, ROTOR_OFFSET, VISCOUS_OFFSET
 from urident.model.robot import N_PARAMS, RobotSpec
 

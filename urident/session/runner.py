@@ -20,7 +20,6 @@ from typing import Callable
 
 import numpy as np
 
-from urident import __version__
 from urident.errors import ConfigError, ConnectionLost, SafetyError, SessionAborted
 from urident.model import RobotSpec, load_robot
 from urident.session.config import ExperimentConfig
