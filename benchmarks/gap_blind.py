@@ -19,23 +19,35 @@ The diagnosis (:func:`urident.gap.diagnose`) gets the identification and validat
 *Recordings* (ground-truth arrays and the sidecar's metadata stripped) and the robot spec, nothing
 else. Scoring, per scenario:
 
-* top-1 effect: the first finding's effect is one of the true effects (effect-free scenarios are
-  scored by the false-alarm count instead);
-* joint: the first finding's joint is that true effect's joint (payload_error: the joint whose
-  validation RMS the true payload torque affects most, i.e. with the largest RMS of the injected
-  torque);
+Magnitudes are drawn uniformly from documented ranges per effect (:data:`REALISTIC`): what real UR
+arms show, centred on the catalogue's ``realistic`` preset. A realistic magnitude may still not
+matter on a given run (a warm-up that barely starts in 30 s, a wrist joint that hardly moves), so
+every scenario is also classified:
+
+* actual shrink, per true effect: 100·(1 − RMS'/RMS) on the sealed run for that effect's joint,
+  RMS the baseline's residual and RMS' the residual once the true effect(s) are added to the
+  baseline *with their true structure* (:func:`truth_candidate`: true Stribeck velocity, true
+  ripple harmonic and mode, true warm-up curve), fitted on the diagnosis' own identification /
+  validation data as the diagnosis would fit them (identification mode; CV for a payload added
+  later), applied to the sealed run. Independent of the diagnosis' choices;
+* visible: at least one true effect has an actual shrink >= 3 % (``VISIBLE_PCT``): modelling it
+  matters. Effect-free scenarios are all scored (false alarms).
+
+Scores, per scenario with an effect:
+
+* top-1 effect: the first finding's effect is one of the true effects;
+* joint: the first finding's (effect, joint) is a true one. A payload's joint (truth and
+  diagnosis alike) is the joint where the payload torque is the largest share of the joint's
+  measured torque (RMS over RMS) on the validation run; the diagnosis reports every joint within
+  ``MAIN_SHARE`` (70 %) of that largest share as affected, and the true joint must be among them;
 * false alarm: an effect-free scenario with any finding;
-* visible: a scenario whose true effect(s) shrink the sealed run's RMS on their joint by at
-  least 3 % once added as below (an effect too small to matter cannot be diagnosed; accuracies
-  are printed over all scenarios and over the visible ones);
-* shrink error, per true effect: |predicted − actual| in percentage points, where
-  *predicted* = the diagnosis' validation shrink of that effect's joint, 100·(1 − RMS_final/RMS_baseline)
-  (0 when nothing was found), and *actual* = 100·(1 − RMS'/RMS) on the sealed run for the same
-  joint, RMS the baseline's residual and RMS' the residual once the true effect(s) are added to the
-  baseline with the magnitude the diagnosis fitted: the diagnosis' own columns for the true
-  (effect, joint) (the variant it scored best), fitted on the diagnosis' identification/validation
-  data exactly as a selection would be (:meth:`GapResult.correction`), applied to the sealed run.
-  Both measured against the unfiltered measured torque (drive gains × raw current).
+* shrink error, per true effect: |predicted − actual| in points, *predicted* = the diagnosis'
+  validation shrink of that joint after all its findings, 100·(1 − RMS_final/RMS_baseline)
+  (0 when nothing was found).
+
+Acceptance (the issue's targets: top-1 >= 90 %, joint 100 %, no false alarms, mean shrink error
+<= 10 points) is judged on the **visible** scenarios (plus all effect-free ones for the false
+alarms); the figures over all scenarios are printed too.
 
 Usage: ``python benchmarks/gap_blind.py [--scenarios 40] [--seed 1] [--rate 200] [--duration 30]``.
 The last line printed is one JSON object.
@@ -52,12 +64,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from urident.simcontroller.effects import EFFECT_NAMES
+
 ROBOT = "ur10e"
 HOME = np.array([0.0, -1.7, 1.6, -1.5, -1.57, 0.0])
-EFFECT_NAMES = ("stribeck", "load_friction", "thermal_drift", "position_ripple", "current_delay",
-                "torque_constant_error", "current_offset", "payload_error", "joint_elasticity")
-BETWEEN_RUNS = ("payload_error",)
-VISIBLE_PCT = 3.0     # an effect is "visible" when adding it shrinks the sealed RMS by this much      # present in the validation and sealed runs only
+BETWEEN_RUNS = ("payload_error",)   # present in the validation and sealed runs only
+VISIBLE_PCT = 3.0    # an effect is "visible" when modelling it shrinks the sealed RMS by this much
 
 
 # ----------------------------------------------------------------------------- trajectories
@@ -117,18 +129,50 @@ def random_fourier(rng, duration: float, harmonics: int = 5, period: float = 10.
 
 
 # ----------------------------------------------------------------------------- effects
+#: Realistic magnitudes per effect: (range drawn uniformly, where the range comes from). "Big"
+#: joints are 1-3 (shoulder/elbow drives), "wrist" joints 4-6. The catalogue's ``realistic``
+#: preset (urident/simcontroller/presets/realistic.yaml) gives the typical value; the ranges
+#: span what real UR arms show around it.
+REALISTIC = {
+    "stribeck": "static/Coulomb friction ratio 1.2-1.6 (preset 1.3 big, 1.2 wrist; harmonic-drive "
+                "breakaway friction is typically 20-60 % above Coulomb), Stribeck velocity "
+                "0.01-0.04 rad/s (preset 0.02-0.03)",
+    "load_friction": "0.01-0.04 N·m per N·m of load (preset 0.015; harmonic-drive efficiency "
+                     "losses grow by a few % of the transmitted torque)",
+    "thermal_drift": "viscous -0.5..-2 %/°C, Coulomb -0.2..-0.8 %/°C (preset -1, -0.3), cold-start "
+                     "grease warm-up 10-20 °C with a time constant of 20-60 s (the preset's 300 s "
+                     "barely changes a 30 s run: such draws are mostly not visible)",
+    "position_ripple": "0.3-0.8 N·m on the big joints, 0.1-0.25 N·m on the wrist (preset 0.2-0.3 "
+                       "and 0.05), at k = 101 (motor once per revolution, 101:1 gear) or a low "
+                       "flexspline harmonic k = 2-3, as torque or as friction",
+    "current_delay": "4-12 ms (preset 3 ms; the RTDE actual current lags the torque by one to a "
+                     "few controller periods plus the current-loop filter)",
+    "torque_constant_error": "true/file drive gain 1.05-1.12 or its inverse (motor torque "
+                             "constants vary by +-5-10 %; the UR10e gains estimated on a real arm "
+                             "differ from the datasheet's by this much)",
+    "current_offset": "+-30-100 mA (preset 10-30 mA; current-sensor offsets of e-Series joints "
+                      "after a power cycle reach ~0.1 A)",
+    "payload_error": "0.5-2 kg at up to 3 cm sideways and 0-8 cm out along the tool axis, added "
+                     "after the identification run (a gripper or tool changer forgotten in the "
+                     "model; UR10e payload 12.5 kg)",
+    "joint_elasticity": "10-25 kN·m/rad on the big joints, 3-8 kN·m/rad on the wrist, damping "
+                        "ratio 0.05-0.2 (preset 15-25 kN·m/rad; harmonic drives of this size)",
+}
+
+
 def draw_effect(rng, name: str, joint: int) -> dict:
-    """One effects-file entry with a realistic random magnitude (joint 0-based)."""
+    """One effects-file entry with a realistic random magnitude (joint 0-based): uniform over
+    the documented range :data:`REALISTIC` [name]."""
     big = joint < 3
     e: dict = {"name": name, "joints": [joint + 1]}
     if name == "stribeck":
-        e.update(static_friction_ratio=float(rng.uniform(1.3, 1.8)),
+        e.update(static_friction_ratio=float(rng.uniform(1.2, 1.6)),
                  stribeck_velocity_rad_s=float(rng.uniform(0.01, 0.04)))
     elif name == "load_friction":
-        e.update(coefficient=float(rng.uniform(0.015, 0.04)))
+        e.update(coefficient=float(rng.uniform(0.01, 0.04)))
     elif name == "thermal_drift":
-        e.update(viscous_change_per_c=float(rng.uniform(-0.02, -0.01)),
-                 coulomb_change_per_c=float(rng.uniform(-0.008, -0.003)),
+        e.update(viscous_change_per_c=float(rng.uniform(-0.02, -0.005)),
+                 coulomb_change_per_c=float(rng.uniform(-0.008, -0.002)),
                  warmup_c=float(rng.uniform(10.0, 20.0)),
                  warmup_time_constant_s=float(rng.uniform(20.0, 60.0)))
     elif name == "position_ripple":
@@ -179,6 +223,47 @@ def draw_scenario(index: int, seed: int, kinds=("none", "one", "one", "one", "on
     return Scenario(index, int(seed), truth)
 
 
+def truth_candidate(spec, t: dict):
+    """The true effect's own structure as regressor columns of :mod:`urident.gap.candidates`
+    (true Stribeck velocity, true ripple harmonic and mode, the true warm-up curve), fitted the
+    way the truth says it acts: in identification mode (present in every run) or, for a payload
+    added later, by CV inside the validation logs. Independent of the diagnosis' choices."""
+    from urident.gap import candidates as C
+
+    e, j, entry = t["effect"], t["joint"], t["entry"]
+    if e == "payload_error":
+        return C.payload_error(spec, "cv")
+    if e == "stribeck":
+        return C.stribeck(j, entry["stribeck_velocity_rad_s"], "ident")
+    if e == "position_ripple":
+        return C.position_ripple(j, int(round(entry["harmonic"])), entry["mode"], "ident")
+    if e == "thermal_drift":
+        warm, tau_w = entry["warmup_c"], entry["warmup_time_constant_s"]
+
+        def build(ctx):
+            x = warm * -np.expm1(-ctx.data.run_time / tau_w)
+            if ctx.data.temperature is not None:
+                x = x + ctx.data.temperature[:, j] - ctx.data.temperature[0, j]
+            return C._on_joint(ctx, j, [x * ctx.qd[:, j], x * ctx.sign()[:, j]])
+        return C.Candidate("thermal_drift", j, "true warm-up", "ident", ("x*qd", "x*sign(qd)"), build)
+    return {"load_friction": C.load_friction, "current_delay": C.current_delay,
+            "torque_constant_error": C.torque_constant_error, "current_offset": C.current_offset,
+            "joint_elasticity": C.joint_elasticity}[e](j, "ident")
+
+
+def payload_joint(spec, entry: dict, rec) -> int:
+    """0-based joint where the true payload's torque is the largest share of the joint's measured
+    torque on ``rec`` (RMS over RMS), as the diagnosis names a payload finding's joint."""
+    from urident.model import joint_torques
+    from urident.simcontroller.effects import payload_params
+
+    p = payload_params(spec, entry["mass_kg"], np.asarray(entry.get("offset_m", [0, 0, 0]), float))
+    tau_p = joint_torques(spec, p, rec.target_q, rec.target_qd, rec.target_qdd)
+    tau = np.asarray(rec.current, float) * np.asarray(spec.drive_gains, float)
+    rms = lambda x: np.sqrt(np.mean(x ** 2, axis=0))   # noqa: E731
+    return int(np.argmax(rms(tau_p) / rms(tau)))
+
+
 def _strip(rec):
     """What a log holds, without the simulator's ground truth (arrays and sidecar keys)."""
     plain = rec.to_recording()
@@ -213,10 +298,11 @@ def run_scenario(spec, sc: Scenario, rate: float = 200.0, duration: float = 30.0
     truth = []
     for t in sc.truth:
         j = t["joint"]
-        if j is None:   # payload: the joint the injected torque affects most on the validation run
-            j = int(np.argmax(np.sqrt(np.mean(valid.extra_torque ** 2, axis=0))))
+        if j is None:   # payload: the joint where it is the largest share of the joint's torque
+            j = payload_joint(spec, t["entry"], valid)
         truth.append((t["effect"], j))
     found = [(f.effect, f.joint - 1) for f in res.findings]
+    affected = [{j - 1 for j in (f.joints or (f.joint,))} for f in res.findings]
     out = {"index": sc.index, "truth": [{"effect": e, "joint": j + 1} for e, j in truth],
            "found": [{"effect": e, "joint": j + 1} for e, j in found],
            "entries": [t["entry"] for t in sc.truth], "diagnosis_s": wall}
@@ -225,14 +311,12 @@ def run_scenario(spec, sc: Scenario, rate: float = 200.0, duration: float = 30.0
         return out
     first = found[0] if found else None
     out["top1"] = bool(first and first[0] in [e for e, _ in truth])
-    out["joint_ok"] = bool(first and (first[0], first[1]) in truth)
+    # joint: the first finding's joint, or for an effect on all joints (payload) any joint it
+    # reports as affected (share of the torque within MAIN_SHARE of the largest)
+    out["joint_ok"] = bool(first and any(e == first[0] and j in affected[0] for e, j in truth))
     out["all_found"] = all(t in found for t in truth)
     # actual shrink on the sealed run with the true effect(s) at the magnitude the diagnosis fitted
-    cands = []
-    for e, j in truth:
-        c = res.best_of(e, j)
-        if c is not None:
-            cands.append(c)
+    cands = [truth_candidate(spec, t) for t in sc.truth]
     sealed_set = build_set([_strip(sealed)], spec)
     ctx_s = make_context(spec, res.model, sealed_set)
     r0 = ctx_s.residual
@@ -254,6 +338,7 @@ def summarise(rows: list[dict]) -> dict:
     free = [r for r in rows if not r["truth"]]
     vis = [r for r in eff if r["visible"]]
     shrink = [s["error_pts"] for r in eff for s in r["shrink"]]
+    shrink_vis = [s["error_pts"] for r in vis for s in r["shrink"]]
     return {
         "scenarios": len(rows),
         "with_effect": len(eff),
@@ -267,6 +352,9 @@ def summarise(rows: list[dict]) -> dict:
         "visible": len(vis),
         "top1_accuracy_visible_pct": 100.0 * np.mean([r["top1"] for r in vis]) if vis else None,
         "joint_accuracy_visible_pct": 100.0 * np.mean([r["joint_ok"] for r in vis]) if vis else None,
+        "mean_shrink_error_visible_pts": float(np.mean(shrink_vis)) if shrink_vis else None,
+        "max_shrink_error_visible_pts": float(np.max(shrink_vis)) if shrink_vis else None,
+        "targets_judged_on": "visible (shrink error, top-1, joint) and all effect-free (false alarms)",
         "mean_diagnosis_s": float(np.mean([r["diagnosis_s"] for r in rows])) if rows else None,
     }
 
@@ -293,7 +381,8 @@ def main(argv=None) -> int:
         found = ", ".join(f"{t['effect']}@{t['joint']}" for t in row["found"]) or "none"
         sh = " ".join(f"{s['predicted_shrink_pct']:.0f}/{s['actual_shrink_pct']:.0f}"
                       for s in row.get("shrink", []))
-        ok = ("ok" if row.get("joint_ok") else "MISS") if row["truth"] else \
+        ok = (("ok" if row.get("joint_ok") else "MISS") + ("" if row["visible"] else " (not visible)")) \
+            if row["truth"] else \
              ("FALSE ALARM" if row["false_alarm"] else "ok")
         print(f"[{i:3d}] truth {truth:40s} found {found:50s} shrink pred/actual {sh:12s} {ok}",
               flush=True)
@@ -302,11 +391,14 @@ def main(argv=None) -> int:
     summary = summarise(rows)
     summary.update(seed=args.seed, rate_hz=args.rate, duration_s=args.duration,
                    wall_s=time.perf_counter() - t0)
-    print(f"top-1 effect accuracy {summary['top1_accuracy_pct']:.1f} %, joint accuracy "
-          f"{summary['joint_accuracy_pct']:.1f} %, false alarms {summary['false_alarms']}/"
-          f"{summary['effect_free']}, mean |predicted - actual shrink| "
-          f"{summary['mean_shrink_error_pts']:.2f} points; over the {summary['visible']} visible: "
-          f"top-1 {summary['top1_accuracy_visible_pct']:.1f} %, joint {summary['joint_accuracy_visible_pct']:.1f} %")
+    print(f"all {summary['with_effect']} effect scenarios: top-1 {summary['top1_accuracy_pct']:.1f} %, "
+          f"joint {summary['joint_accuracy_pct']:.1f} %, mean |predicted - actual shrink| "
+          f"{summary['mean_shrink_error_pts']:.2f} points (max {summary['max_shrink_error_pts']:.1f})")
+    print(f"visible {summary['visible']} (targets judged here): top-1 "
+          f"{summary['top1_accuracy_visible_pct']:.1f} %, joint {summary['joint_accuracy_visible_pct']:.1f} %, "
+          f"shrink error {summary['mean_shrink_error_visible_pts']:.2f} points "
+          f"(max {summary['max_shrink_error_visible_pts']:.1f}); false alarms "
+          f"{summary['false_alarms']}/{summary['effect_free']} effect-free")
     print(json.dumps(summary))
     return 0
 

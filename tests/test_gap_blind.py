@@ -43,6 +43,7 @@ def test_withheld_load_friction_is_found_and_its_shrink_predicted(gb, robot):
     entry = {"name": "load_friction", "joints": [3], "coefficient": 0.04}
     row = _run(gb, robot, [{"effect": "load_friction", "joint": 2, "entry": entry}], index=1)
     assert row["top1"] and row["joint_ok"], row
+    assert row["visible"]
     s = row["shrink"][0]
     assert s["actual_shrink_pct"] > 5
     assert s["error_pts"] < 10
@@ -57,3 +58,4 @@ def test_the_diagnosis_never_sees_the_truth(gb, robot):
     assert type(plain).__name__ == "Recording"
     assert not hasattr(plain, "extra_torque") and "extra" not in plain.metadata
     assert "offset" not in repr(plain.metadata)
+

@@ -74,3 +74,39 @@ def test_block_bootstrap_interval_covers_the_mean_and_widens_with_correlation(rn
     assert hi2 - lo2 > 3 * (hi - lo)
     both = block_bootstrap_means(np.c_[white, walk], 100, 200, 2)
     assert both.shape == (200, 2)
+
+
+def test_effect_names_are_the_catalogue_s():
+    from urident.gap.candidates import EFFECTS
+    from urident.simcontroller.effects import EFFECT_NAMES
+
+    assert EFFECTS is EFFECT_NAMES
+
+
+def test_implausible_fits_are_not_findings():
+    """Sign/size constraints of the catalogue's physics on fitted coefficients."""
+    from urident.gap.candidates import current_delay, current_offset, load_friction, stribeck
+    from urident.gap.diagnose import MIN_PAYLOAD_KG, plausible
+
+    assert plausible(stribeck(1, 0.02), np.array([0.5]))
+    assert not plausible(stribeck(1, 0.02), np.array([-0.5]))     # less friction at rest
+    assert not plausible(load_friction(0), np.array([-0.01]))
+    assert plausible(current_delay(2), np.array([-0.004]))        # coefficient −d, d > 0
+    assert not plausible(current_delay(2), np.array([0.004]))
+    assert plausible(current_offset(3), np.array([-0.3]))         # either sign
+
+    class _Payload:
+        effect = "payload_error"
+
+    assert plausible(_Payload, np.array([1.0, 0.01, 0.0, 0.05]))
+    assert plausible(_Payload, np.array([-1.0, 0.0, 0.0, 0.0]))    # a modelled payload removed
+    assert not plausible(_Payload, np.array([MIN_PAYLOAD_KG / 2, 0.0, 0.0, 0.0]))
+    assert not plausible(_Payload, np.array([0.2, 0.5, 0.0, 0.0]))  # centre 2.5 m away
+
+
+def test_payload_joint_is_the_largest_share_of_the_joint_torque():
+    from urident.gap.diagnose import _main_joint
+
+    tau = np.ones((50, 6)) * np.array([10.0, 100.0, 50.0, 2.0, 2.0, 1.0])
+    change = np.ones((50, 6)) * np.array([0.0, 8.0, 5.0, 0.4, 0.1, 0.05])
+    assert _main_joint(change, tau) == 3          # 20 % of joint 4's torque beats 8 % of joint 2's

@@ -43,3 +43,10 @@ class SessionAborted(UridentError):
 
 class ConnectionLost(SessionAborted, ConnectionError):
     """The controller stopped answering."""
+
+
+def shown(value: object, limit: int = 60) -> str:
+    """``value`` as it may appear inside a one-line message: control characters escaped, long
+    text shortened (user input such as a YAML key can hold newlines)."""
+    text = str(value).encode("unicode_escape").decode("ascii")
+    return text if len(text) <= limit else text[: limit - 1] + "…"

@@ -11,8 +11,6 @@ from pathlib import Path
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    from urident.gap.candidates import EFFECTS
-
     p = subparsers.add_parser(
         "gap", help="diagnose the sim-to-real gap: where, which unmodelled effect, how far it shrinks",
         description="Identify the paper's baseline model (OLS, tanh friction, eps = 0.01 rad/s) on "
@@ -36,7 +34,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--drive-gains", metavar="G1,...,G6", default=None,
                    help="N·m per A of motor current (default: the parameters file's or robot file's)")
     p.add_argument("--effects", metavar="NAMES", default=None,
-                   help=f"comma-separated subset of the catalogue to test (default all: {', '.join(EFFECTS)})")
+                   help="comma-separated subset of the catalogue to test (default: all; names as in "
+                        "'urident simulate --list-effects')")
     p.add_argument("--min-shrink", dest="min_shrink_pct", type=float, default=3.0, metavar="PCT",
                    help="a finding must shrink its joint's validation RMS by at least this (default 3)")
     p.add_argument("--max-effects", type=int, default=3, metavar="N",

@@ -48,7 +48,7 @@ import yaml
 from urident.fileio import write_text_atomic
 
 from urident import __version__
-from urident.errors import ConfigError
+from urident.errors import ConfigError, shown
 from urident.excitation.constraints import Limits, Margins
 from urident.excitation.fourier import FourierTrajectory
 from urident.model.robot import RobotSpec, load_robot
@@ -267,7 +267,7 @@ class _Reader:
     def keys(self, mapping: dict, allowed: set[str], where: str) -> None:
         unknown = sorted(str(k) for k in mapping if not isinstance(k, str) or k not in allowed)
         if unknown:
-            raise ConfigError(f"{self.name}: unknown key '{self._key(where, unknown[0])}' "
+            raise ConfigError(f"{self.name}: unknown key '{shown(self._key(where, unknown[0]))}' "
                               f"(allowed: {', '.join(sorted(allowed))})")
 
     def get(self, mapping: dict, key: str, kind: Any, where: str) -> Any:

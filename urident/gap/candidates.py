@@ -17,8 +17,8 @@ load_friction          |τ̂_link,j|·s
 thermal_drift          x·q̇_j and x·s with x = time since the start of the run [min], or the joint
                        temperature's change since then, or its difference to the identification
                        logs' mean temperature
-position_ripple        sin(k·q_j), cos(k·q_j) (mode torque) or the same × s (mode friction), k from
-                       the peaks of the angle-domain spectrum of the identification residual
+position_ripple        sin(k·q_j), cos(k·q_j) (mode torque) or the same × s (mode friction), k = 2-4
+                       and the peaks of the angle-domain spectrum of the identification residual
 current_delay          dτ̂_j/dt (coefficient −d)
 torque_constant_error  τ̂_j (coefficient 1/gain_factor − 1)
 current_offset         1 (coefficient the offset in N·m)
@@ -36,10 +36,10 @@ from typing import Callable
 import numpy as np
 
 from urident.gap.residual import SetContext
+from urident.simcontroller.effects.catalogue import EFFECT_NAMES
 
-#: The catalogue's names, in its order (urident.simcontroller.effects.EFFECT_NAMES).
-EFFECTS = ("stribeck", "load_friction", "thermal_drift", "position_ripple", "current_delay",
-           "torque_constant_error", "current_offset", "payload_error", "joint_elasticity")
+#: The catalogue's names, in its order (the catalogue's own tuple, not a copy).
+EFFECTS = EFFECT_NAMES
 #: Effects that may differ between runs (friction of the day, warm-up, a sensor offset, a payload
 #: added later): also fitted by blocked CV inside the validation logs.
 CV_EFFECTS = ("stribeck", "load_friction", "thermal_drift", "current_offset", "payload_error")
@@ -47,6 +47,7 @@ CV_EFFECTS = ("stribeck", "load_friction", "thermal_drift", "current_offset", "p
 #: base parameters): only CV.
 CV_ONLY = ("payload_error",)
 STRIBECK_VS = (0.005, 0.01, 0.02, 0.04, 0.08)   # [rad/s]
+LOW_HARMONICS = (2, 3, 4)    # position_ripple: always tried (k = 1 is a gravity-like term)
 
 
 @dataclass(eq=False)
@@ -238,9 +239,11 @@ def families(spec, ident: SetContext, valid: SetContext, effects=EFFECTS, ripple
                             fam += [thermal_drift(j, "temperature_abs", mode, t_ref)]
                 elif e == "position_ripple":
                     spec_j = angle_spectrum(r_id[:, j], ident.q[:, j], ident.qd[:, j], ident.friction_eps)
-                    fam = [position_ripple(j, k, "torque", mode) for k in spec_j.peaks(ripple_peaks)]
-                    fam += [position_ripple(j, k, "friction", mode)
-                            for k in spec_j.peaks(ripple_peaks, friction=True)]
+                    # low flexspline harmonics always, plus the spectrum's peaks
+                    ks_t = sorted(set(LOW_HARMONICS) | set(spec_j.peaks(ripple_peaks)))
+                    ks_f = sorted(set(LOW_HARMONICS) | set(spec_j.peaks(ripple_peaks, friction=True)))
+                    fam = [position_ripple(j, k, "torque", mode) for k in ks_t]
+                    fam += [position_ripple(j, k, "friction", mode) for k in ks_f]
                 elif e == "current_delay":
                     fam = [current_delay(j, mode)]
                 elif e == "torque_constant_error":

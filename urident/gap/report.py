@@ -92,7 +92,9 @@ def format_report(res, top: int = 12) -> str:
         lines.append("Findings (greedy forward selection):")
         for k, x in enumerate(res.findings):
             mag = ", ".join(f"{key} = {_fmt(v)}" for key, v in x.magnitude.items() if key != "coefficients")
-            lines.append(f"  {k + 1}. {x.effect} on joint {x.joint} [{x.mode}] {x.variant}: "
+            also = [jj for jj in x.joints if jj != x.joint]
+            where = f"joint {x.joint}" + (f" (also {', '.join(map(str, also))})" if also else "")
+            lines.append(f"  {k + 1}. {x.effect} on {where} [{x.mode}] {x.variant}: "
                          f"RMS {x.rms_before_nm:.3f} -> {x.rms_after_nm:.3f} N·m "
                          f"({x.shrink_pct:.1f} % smaller), confidence {x.confidence}")
             lines.append(f"     where: {x.regime}")

@@ -13,7 +13,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from urident.errors import ConfigError
+from urident.errors import ConfigError, shown
 from urident.ident.friction import (COULOMB_MODELS, DAHL_SOURCES, EXTRA_FEATURES, EXTRA_PREFIX,
                                     NONNEGATIVE_EXTRAS, dahl_state, hold_state, sqrt_viscous, stribeck,
                                     velocity_displacement)
@@ -61,7 +61,7 @@ class ModelConfig:
         allowed = set(cls.__dataclass_fields__)
         unknown = sorted(set(data) - allowed)
         if unknown:
-            raise ConfigError(f"{where}: unknown key '{unknown[0]}' (allowed: {', '.join(sorted(allowed))})")
+            raise ConfigError(f"{where}: unknown key '{shown(unknown[0])}' (allowed: {', '.join(sorted(allowed))})")
         kw = dict(data)
         if "extras" in kw:
             kw["extras"] = tuple(kw["extras"] or ())

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from urident.errors import ConfigError
+from urident.errors import ConfigError, shown
 from urident.ident.design import ModelConfig
 from urident.ident.identify import METHODS, IdentifiedModel
 from urident.ident.preprocess import PreprocessConfig, Provenance
@@ -100,7 +100,7 @@ def load_params(path: str | Path) -> IdentifiedModel:
         raise _err(path, "expected a mapping at the top level")
     unknown = sorted(set(map(str, data)) - _TOP)
     if unknown:
-        raise _err(path, f"unknown key '{unknown[0]}'")
+        raise _err(path, f"unknown key '{shown(unknown[0])}'")
     missing = sorted(_REQUIRED - set(data))
     if missing:
         raise _err(path, f"missing key '{missing[0]}'")
@@ -126,7 +126,7 @@ def load_params(path: str | Path) -> IdentifiedModel:
     try:
         pre_unknown = sorted(set(pre) - {f.name for f in fields(PreprocessConfig)})
         if pre_unknown:
-            raise _err(path, f"unknown key 'preprocess.{pre_unknown[0]}'")
+            raise _err(path, f"unknown key 'preprocess.{shown(pre_unknown[0])}'")
         preprocess = PreprocessConfig(**pre)
     except ConfigError as exc:
         raise ParamsFileError(str(exc) if str(exc).startswith(str(path)) else f"{path}: key 'preprocess': {exc}") from None

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from urident.errors import ConfigError, UnknownRobotError
+from urident.errors import ConfigError, UnknownRobotError, shown
 
 ROBOTS_DIR = Path(__file__).parent / "robots"
 N_JOINTS = 6
@@ -258,7 +258,7 @@ class _Reader:
     def keys(self, mapping: dict, allowed: set[str], where: str) -> None:
         unknown = sorted(set(map(str, mapping)) - allowed)
         if unknown:
-            raise ConfigError(f"{self.path}: unknown key '{self._name(where, unknown[0])}' "
+            raise ConfigError(f"{self.path}: unknown key '{shown(self._name(where, unknown[0]))}' "
                               f"(allowed: {', '.join(sorted(allowed))})")
 
     def get(self, mapping: dict, key: str, kind: Any, where: str = "") -> Any:

@@ -13,7 +13,7 @@ from typing import Any
 
 import yaml
 
-from urident.errors import ConfigError
+from urident.errors import ConfigError, shown
 
 # ur_rtde enforces these ranges for servoJ.
 LOOKAHEAD_RANGE_S = (0.03, 0.2)
@@ -86,7 +86,7 @@ def load_experiment_config(path: str | Path | None) -> ExperimentConfig:
     allowed = set(_SECTIONS) | {"rest_s"}
     for key in data:
         if key not in allowed:
-            raise ConfigError(f"{path}: unknown key '{key}' (allowed: {', '.join(sorted(allowed))})")
+            raise ConfigError(f"{path}: unknown key '{shown(key)}' (allowed: {', '.join(sorted(allowed))})")
     kwargs: dict[str, Any] = {"source": str(path)}
     for name, cls in _SECTIONS.items():
         section = data.get(name) or {}
@@ -103,7 +103,7 @@ def _build(cls: type, section: dict, path: Path, prefix: str) -> Any:
     values = {}
     for key, value in section.items():
         if key not in known:
-            raise ConfigError(f"{path}: unknown key '{prefix}.{key}' (allowed: {', '.join(sorted(known))})")
+            raise ConfigError(f"{path}: unknown key '{prefix}.{shown(key)}' (allowed: {', '.join(sorted(known))})")
         kind = int if known[key].type in ("int", int) else float
         values[key] = _number(value, path, f"{prefix}.{key}", kind)
     return replace(cls(), **values)
