@@ -3,7 +3,7 @@ urident's simulated controller (UR5e) on loopback.
 
 1. bare: ``t = initPeriod(); servoJ(q, …); waitPeriod(t)`` and nothing else, holding a pose,
    with the same real-time scheduling urident gives its loop when the OS allows it;
-2. urident: ``urident run`` of a trajectory of the same length with monitors, the recorder
+2. urident: ``urident run`` of experiments/ur5e_ident.yaml, repeated to the same length, with monitors, the recorder
    (every controller sample to the log) and live streaming to a .rrd file on.
 
 For each: the fraction of late cycles (a period longer than 2 ms + 0.5 ms) and the p50 / p99 /
@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 HOST = "127.0.0.8"
+EXPERIMENTS = Path(__file__).resolve().parent.parent / "experiments"
 PERIOD = 0.002
 TOLERANCE = 0.0005
 
@@ -64,21 +65,11 @@ def summary(periods: np.ndarray) -> dict[str, float]:
             "max_us": float(errors.max() * 1e6), "cycles": int(len(periods))}
 
 
-def make_trajectory(path: Path, seconds: float) -> None:
-    from urident.excitation import FourierTrajectory, Limits, trajectory_document, write_trajectory
-    from urident.excitation.fourier import base_frequency
-    from urident.model import load_robot
-
-    free = np.random.default_rng(0).normal(scale=0.12, size=(6, 4))
-    q0 = np.array([0.0, -1.5708, 0.0, -1.5708, 0.0, 0.0])
-    traj = FourierTrajectory.from_free(free, base_frequency(seconds), q0, seconds)
-    write_trajectory(path, trajectory_document("ur5e", traj, Limits.from_robot(load_robot("ur5e"))))
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=60.0)
     args = parser.parse_args()
+    from urident.excitation import load_trajectory
     from urident.logs import load_log
     from urident.simcontroller.process import SimControllerProcess
 
@@ -89,16 +80,17 @@ def main() -> None:
                                  capture_output=True, text=True, check=True)
         bare = summary(np.array(json.loads(out.stdout.strip().splitlines()[-1])))
 
-        traj = tmp / "traj.yaml"
-        make_trajectory(traj, args.seconds)
+        # The shipped UR5e identification trajectory (20 s), repeated to last args.seconds.
+        traj = EXPERIMENTS / "ur5e_ident.yaml"
+        repeat = max(1, round(args.seconds / load_trajectory(traj).trajectory.duration))
         config = tmp / "config.yaml"
         config.write_text("monitors:\n  max_late_fraction: 1.0\n  max_consecutive_late: 1000000\nrest_s: 0.0\n")
         log = tmp / "run.csv"
-        start = [0.0, -1.5708, 0.0, -1.5708, 0.0, 0.0]
+        start = load_trajectory(traj).trajectory.q_start + 0.02
         with SimControllerProcess(host=HOST, robot="ur5e", initial_q=start):
             subprocess.run([sys.executable, "-m", "urident.cli.main", "run", "--robot", "ur5e", "--host", HOST,
                             "--trajectory", str(traj), "--out", str(log), "--config", str(config), "--yes",
-                            "--save-rrd", str(tmp / "run.rrd"), "--record-periods"],
+                            "--save-rrd", str(tmp / "run.rrd"), "--record-periods", "--repeat", str(repeat)],
                            check=True, capture_output=True, text=True)
         periods = np.load(log.with_suffix(".periods.npy"))
         ours = summary(periods)

@@ -1,6 +1,7 @@
 """Regressor speed: the stacked UR5 regressor Θ (6N × 78) for N = 10,000 random samples.
 
-Prints µs per sample for urident's compiled kernel (the default), its numpy fallback, and a Python
+Prints µs per sample for urident's compiled kernel (the default: large batches are split over the
+machine's cores, up to 4; also shown on one thread), its numpy fallback, and a Python
 loop over Pinocchio's computeJointTorqueRegressor (rigid body only) for reference. Best of several
 repetitions (the minimum is the least disturbed by other load). Last line: one JSON object.
 
@@ -11,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
 
 import numpy as np
@@ -18,7 +20,7 @@ import pinocchio as pin
 
 from urident.model import load_robot, regressor
 from urident.model.pinocchio_model import build_model
-from urident.model.regressor import kernel_available
+from urident.model.regressor import kernel_available, kernel_threads
 
 
 def best_time(fn, repeat: int) -> float:
@@ -46,6 +48,11 @@ def main() -> None:
     results = {}
     if kernel_available():
         results["us_per_sample"] = best_time(lambda: regressor(spec, q, qd, qdd, backend="c"), args.repeat) / n * 1e6
+        results["threads"] = kernel_threads()
+        os.environ["URIDENT_REGRESSOR_THREADS"] = "1"
+        results["single_thread_us_per_sample"] = best_time(
+            lambda: regressor(spec, q, qd, qdd, backend="c"), args.repeat) / n * 1e6
+        del os.environ["URIDENT_REGRESSOR_THREADS"]
     results["numpy_us_per_sample"] = best_time(lambda: regressor(spec, q, qd, qdd, backend="numpy"), args.repeat) / n * 1e6
     results.setdefault("us_per_sample", results["numpy_us_per_sample"])
 

@@ -180,3 +180,14 @@ def test_model_cli_json(capsys):
     assert json.loads(capsys.readouterr().out)["n_base"] == 33
     assert main(["model", "--robot", "nope"]) == 2
     assert "unknown robot 'nope'" in capsys.readouterr().err
+
+
+def test_threaded_kernel_equals_single_thread(rng, monkeypatch):
+    spec = load_robot("ur10e")
+    q, qd, qdd = rng.uniform(-3, 3, (3, 5000, 6))  # above the parallel threshold
+    monkeypatch.setenv("URIDENT_REGRESSOR_THREADS", "3")
+    threaded = regressor(spec, q, qd, qdd)
+    monkeypatch.setenv("URIDENT_REGRESSOR_THREADS", "1")
+    single = regressor(spec, q, qd, qdd)
+    assert np.array_equal(threaded, single)
+    np.testing.assert_allclose(threaded, regressor(spec, q, qd, qdd, backend="numpy"), atol=1e-9)

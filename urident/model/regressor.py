@@ -10,6 +10,9 @@ product, with no per-sample Python loop. Rotor inertia and friction add diagonal
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 
 from urident.model.kinematics import AXIS_INDEX
@@ -25,8 +28,45 @@ DEFAULT_FRICTION_EPS = 0.01  # [rad/s] slope of tanh(q̇/ε) ≈ sign(q̇)
 BACKENDS = ("auto", "c", "numpy")
 
 
+PARALLEL_MIN_SAMPLES = 4096  # below this, one thread is faster than handing out work
+_pool: ThreadPoolExecutor | None = None
+
+
 def kernel_available() -> bool:
     return _regressor_kernel is not None
+
+
+def kernel_threads() -> int:
+    """Threads the compiled kernel splits large batches over (it releases the GIL): the CPU count,
+    at most 4, or ``URIDENT_REGRESSOR_THREADS``."""
+    value = os.environ.get("URIDENT_REGRESSOR_THREADS")
+    if value:
+        try:
+            return max(1, int(value))
+        except ValueError:
+            pass
+    return max(1, min(4, os.cpu_count() or 1))
+
+
+def _fill_kernel(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+                 friction_eps: float) -> np.ndarray:
+    global _pool
+    n = q.shape[0]
+    out = np.empty((n, 6, N_PARAMS))  # the kernel writes every entry
+    geometry, axes = _kernel_geometry(spec)
+    q, qd, qdd = (np.ascontiguousarray(x) for x in (q, qd, qdd))
+    threads = kernel_threads()
+    if threads == 1 or n < PARALLEL_MIN_SAMPLES:
+        _regressor_kernel.fill(out, q, qd, qdd, geometry, axes, float(friction_eps))
+        return out
+    if _pool is None or _pool._max_workers != threads:
+        _pool = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="urident-regressor")
+    bounds = np.linspace(0, n, threads + 1).astype(int)
+    jobs = [_pool.submit(_regressor_kernel.fill, out[a:b], q[a:b], qd[a:b], qdd[a:b], geometry, axes,
+                         float(friction_eps)) for a, b in zip(bounds[:-1], bounds[1:])]
+    for job in jobs:
+        job.result()
+    return out
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -84,8 +124,9 @@ def regressor_blocks(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, qdd: np.nda
                      chunk: int = 4096) -> np.ndarray:
     """The same regressor as an (N, 6, 78) array.
 
-    ``backend``: ``"c"`` the compiled kernel, ``"numpy"`` the vectorised implementation (computed
-    ``chunk`` samples at a time to keep intermediates in cache), ``"auto"`` the kernel when built.
+    ``backend``: ``"c"`` the compiled kernel (large batches split over :func:`kernel_threads`
+    threads), ``"numpy"`` the vectorised implementation (computed ``chunk`` samples at a time to
+    keep intermediates in cache), ``"auto"`` the kernel when built.
     """
     q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
     if not (q.shape == qd.shape == qdd.shape) or q.ndim != 2 or q.shape[1] != 6:
@@ -97,11 +138,7 @@ def regressor_blocks(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, qdd: np.nda
     if backend == "c" and _regressor_kernel is None:
         raise RuntimeError("the compiled regressor kernel is not built (reinstall with a C compiler)")
     if backend != "numpy" and _regressor_kernel is not None:
-        out = np.empty((q.shape[0], 6, N_PARAMS))  # the kernel writes every entry
-        geometry, axes = _kernel_geometry(spec)
-        _regressor_kernel.fill(out, np.ascontiguousarray(q), np.ascontiguousarray(qd),
-                               np.ascontiguousarray(qdd), geometry, axes, float(friction_eps))
-        return out
+        return _fill_kernel(spec, q, qd, qdd, friction_eps)
     out = np.zeros((q.shape[0], 6, N_PARAMS))
     for start in range(0, q.shape[0], chunk):
         stop = start + chunk
