@@ -17,12 +17,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from shared_data import UR10E_DATA
 from urident.ident import (ModelConfig, PreprocessConfig, identify_all, load_params, prepare,
                            resolve_preset, save_params, validate)
 from urident.logs import load_log
 from urident.model import load_robot
 
-DATA = Path("/work/shared/data/ur10e-dynamic-calibration")
+DATA = UR10E_DATA
 ID_FILE = DATA / "ur-20_02_10-30sec_12harm.csv"
 VAL_FILE = DATA / "ur-20_01_17-ptp_10_points.csv"
 PAPER_RMS = np.array([2.19, 3.57, 1.59, 0.44, 1.00, 1.27])

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from shared_data import UR10E_DATA
 from urident.errors import LogFormatError
 from urident.logs import (
     LOG_FIELDS,
@@ -24,7 +25,7 @@ from urident.logs import (
     sidecar_path,
 )
 
-DATA = Path("/work/shared/data/ur10e-dynamic-calibration")
+DATA = UR10E_DATA
 HARM = DATA / "ur-20_02_10-30sec_12harm.csv"
 PTP = DATA / "ur-20_01_17-ptp_10_points.csv"
 BAD = DATA / "ur-19_09_27-11_32_02.csv"
