@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from urident.errors import ConfigError, LogFormatError, UridentError
+from urident.errors import ConfigError, LogFormatError
 from urident.ident import (ModelConfig, PreprocessConfig, accelerations, identify, identify_all,
                            load_params, metrics, predict, prepare, preprocess, save_params, validate)
 from urident.ident.design import base_for, design_matrix, nonnegative_mask

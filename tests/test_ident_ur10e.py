@@ -12,7 +12,6 @@ the identification file (urident/ident/presets.py); the validation file only sco
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 import pytest
