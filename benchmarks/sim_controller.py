@@ -46,7 +46,6 @@ def main() -> int:
         period = 0.002
         n = int(round(args.seconds / period))
         timestamps = []
-        errors = []
         stat_begin = cpu_times()
         t_begin = time.perf_counter()
         for k in range(n):
