@@ -192,3 +192,38 @@ def test_cb3_controller_runs_at_125_hz(files):
     first, last = log.metadata["extra"]["servo_timestamps_s"][:2]
     n_servo = int(servo_samples(log).sum())
     assert n_servo == round((last - first) / 0.008) + 1 and n_servo >= 3.0 * 125 + 1 + 25 - 2
+
+
+def test_sigint_during_the_approach_stops_the_move(files):
+    """Ctrl-C while moveJ is under way stops the robot there, not at the start."""
+    out = files["dir"] / "sigint_approach.csv"
+    host = "127.0.0.59"
+    from urident.excitation import load_trajectory
+
+    start = load_trajectory(files["ur5e"]).trajectory.q_start
+    away = start.copy()
+    away[0] += 1.0  # 1 rad at 0.3 rad/s: several seconds of approach
+    with SimControllerProcess(host=host, robot="ur5e", initial_q=away):
+        cmd = [sys.executable, "-m", "urident.cli.main", "run", "--robot", "ur5e", "--host", host,
+               "--trajectory", str(files["ur5e"]), "--out", str(out), "--config", str(files["config"]),
+               "--yes"]
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                stdin=subprocess.DEVNULL)
+        line = ""
+        deadline = time.monotonic() + 60
+        while "moving to the start" not in line and time.monotonic() < deadline:
+            line = proc.stdout.readline()
+        time.sleep(1.5)
+        proc.send_signal(signal.SIGINT)
+        stdout, stderr = proc.communicate(timeout=60)
+        at_rest, runtime = controller_at_rest(host)
+        import rtde_receive
+
+        r = rtde_receive.RTDEReceiveInterface(host)
+        q_now = np.array(r.getActualQ())
+        r.disconnect()
+    assert proc.returncode == 4
+    assert "interrupted by the operator" in one_line_error(stderr)
+    assert at_rest and runtime != 2
+    assert 0.05 < abs(q_now[0] - away[0]) < 0.95  # stopped part-way
+    assert load_log(out).status == "aborted"

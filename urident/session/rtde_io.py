@@ -141,7 +141,15 @@ class RobotLink:
 
     # ------------------------------------------------------------------ motion
     def move_joints(self, q: np.ndarray, speed: float, acceleration: float) -> bool:
-        return bool(self.control.moveJ(list(map(float, q)), speed, acceleration))
+        """Start an asynchronous moveJ (the caller polls :meth:`move_progress`)."""
+        return bool(self.control.moveJ(list(map(float, q)), speed, acceleration, True))
+
+    def move_progress(self) -> float:
+        """ur_rtde's async progress: < 0 when no asynchronous move is running."""
+        return float(self.control.getAsyncOperationProgress())
+
+    def stop_move(self, deceleration: float = 2.0) -> None:
+        self.control.stopJ(deceleration)
 
     def init_period(self):
         return self.control.initPeriod()

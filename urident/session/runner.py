@@ -143,6 +143,44 @@ def _clearance_function(spec: RobotSpec, limits):
     return lambda q: capsules.margins(spec, q).min(axis=1)
 
 
+APPROACH_TOLERANCE_RAD = 1e-3
+APPROACH_POLL_S = 0.01
+
+
+def _approach(link: RobotLink, q_start: np.ndarray, config: ExperimentConfig,
+              plan: ApproachPlan | None) -> None:
+    """moveJ to the start, asynchronously, so that Ctrl-C and the safety bits are seen at once:
+    poll every 10 ms until the robot stands at the start; stop the move on any problem."""
+    speed, acceleration = config.approach.speed_rad_s, config.approach.acceleration_rad_s2
+    distance = plan.max_joint_distance_rad if plan is not None else np.pi
+    # Trapezoidal profile time, then a generous margin for a slower controller.
+    deadline = time.monotonic() + 3.0 * (distance / speed + speed / acceleration) + 5.0
+    if not link.move_joints(q_start, speed, acceleration):
+        raise SessionAborted("moveJ to the trajectory start was rejected by the controller: "
+                             "nothing moved")
+    try:
+        while True:
+            time.sleep(APPROACH_POLL_S)
+            _, q, safety_bits, runtime_state = link.monitor_state()
+            problem = safety_problem(int(safety_bits))
+            if problem:
+                raise SessionAborted(f"during the approach: {problem}")
+            if runtime_state != 2:
+                raise SessionAborted(f"during the approach: control program stopped "
+                                     f"(runtime_state={runtime_state})")
+            at_start = np.max(np.abs(np.asarray(q) - q_start)) < APPROACH_TOLERANCE_RAD
+            if at_start and link.move_progress() < 0:
+                return
+            if time.monotonic() > deadline:
+                raise SessionAborted("the approach to the start did not finish in time")
+    except BaseException:
+        try:
+            link.stop_move()
+        except Exception:  # noqa: BLE001 - the finally of the session still stops the script
+            pass
+        raise
+
+
 def _rejection_cause(link: RobotLink, period: float) -> str:
     """Why the controller refused a command: the control connection can see a stop a few
     packages before the receive connection does, so give the latter up to 20 periods."""
@@ -210,10 +248,7 @@ def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion:
     scheduling_note = scheduling.__enter__()
     try:
         say(f"moving to the start at {config.approach.speed_rad_s} rad/s …")
-        if not link.move_joints(motion.q_cmd[0], config.approach.speed_rad_s,
-                                config.approach.acceleration_rad_s2):
-            raise SessionAborted("moveJ to the trajectory start failed (the controller rejected it "
-                                 "or stopped): nothing else was moved")
+        _approach(link, motion.q_cmd[0], config, result.approach)
         link.control.servoStop()
         say(f"running {len(motion.q_cmd)} servo periods at {info.rate_hz:g} Hz …")
         lookahead, gain = config.servo.lookahead_time_s, config.servo.gain
