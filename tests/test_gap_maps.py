@@ -110,3 +110,22 @@ def test_payload_joint_is_the_largest_share_of_the_joint_torque():
     tau = np.ones((50, 6)) * np.array([10.0, 100.0, 50.0, 2.0, 2.0, 1.0])
     change = np.ones((50, 6)) * np.array([0.0, 8.0, 5.0, 0.4, 0.1, 0.05])
     assert _main_joint(change, tau) == 3          # 20 % of joint 4's torque beats 8 % of joint 2's
+
+
+def test_noise_sigma_sees_the_white_noise_not_the_slow_structure(rng):
+    from urident.gap.diagnose import noise_sigma
+
+    t = np.arange(4000) / 200.0
+    r = rng.normal(0, 0.17, (len(t), 6))
+    r[:, 2] += 1.5 * np.sin(0.5 * t) + 0.8          # slow structure and an offset on joint 3
+    sigma = noise_sigma(r)
+    assert sigma == pytest.approx(np.full(6, 0.17), rel=0.1)
+
+
+def test_cv_findings_need_a_correction_above_the_noise_floor():
+    from urident.gap.diagnose import material_cv
+
+    sigma = 0.17
+    assert not material_cv(np.full(100, 0.043), sigma, 0.5)   # a 5 mA offset on joint 3: 0.25 σ
+    assert material_cv(np.full(100, 0.5), sigma, 0.5)         # a 60 mA offset: ~3 σ
+    assert material_cv(np.full(100, 0.01), sigma, 0.0)        # floor off

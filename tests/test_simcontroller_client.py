@@ -8,6 +8,7 @@ import socket
 
 import numpy as np
 import pytest
+from sim_helpers import dashboard
 
 rtde_control = pytest.importorskip("rtde_control")
 rtde_receive = pytest.importorskip("rtde_receive")
@@ -26,16 +27,6 @@ def sim_e():
     with SimControllerProcess(host=HOST_E, robot="ur5e", seed=3) as sim:
         yield sim
     assert sim.returncode == 0
-
-
-def dashboard(host: str, *commands: str) -> list[str]:
-    with socket.create_connection((host, 29999), timeout=5) as sock:
-        reader = sock.makefile("r")
-        lines = [reader.readline().strip()]
-        for command in commands:
-            sock.sendall((command + "\n").encode())
-            lines.append(reader.readline().strip())
-        return lines
 
 
 def consistent_sample(receive):

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import socket
 import time
 
 import numpy as np
 import pytest
+from sim_helpers import dashboard
 
 rtde_control = pytest.importorskip("rtde_control")
 rtde_receive = pytest.importorskip("rtde_receive")
@@ -14,16 +14,6 @@ rtde_receive = pytest.importorskip("rtde_receive")
 from urident.simcontroller.process import SimControllerProcess  # noqa: E402
 
 MAX_POLLS = 4000      # bounds every wait loop (1 ms sleeps); tests never assert on wall time
-
-
-def dashboard(host: str, *commands: str) -> list[str]:
-    with socket.create_connection((host, 29999), timeout=5) as sock:
-        reader = sock.makefile("r")
-        lines = [reader.readline().strip()]
-        for command in commands:
-            sock.sendall((command + "\n").encode())
-            lines.append(reader.readline().strip())
-        return lines
 
 
 def test_protective_stop_after_first_motion_is_seen_and_can_be_unlocked():

@@ -38,6 +38,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "'urident simulate --list-effects')")
     p.add_argument("--min-shrink", dest="min_shrink_pct", type=float, default=3.0, metavar="PCT",
                    help="a finding must shrink its joint's validation RMS by at least this (default 3)")
+    p.add_argument("--cv-min-noise", dest="cv_min_noise_ratio", type=float, default=0.5,
+                   metavar="RATIO",
+                   help="a finding fitted inside the validation logs (CV mode) must correct its "
+                        "joint by an RMS of at least RATIO x the joint's white-noise torque "
+                        "(default 0.5; 0 turns the floor off)")
     p.add_argument("--max-effects", type=int, default=3, metavar="N",
                    help="at most this many effects (greedy forward selection, default 3)")
     p.add_argument("--seed", type=int, default=0, help="bootstrap seed (default 0)")
@@ -76,6 +81,7 @@ def run(args: argparse.Namespace) -> int:
     if args.effects:
         effects = tuple(e.strip() for e in args.effects.split(",") if e.strip())
     config = GapConfig(effects=effects, min_shrink_pct=args.min_shrink_pct,
+                       cv_min_noise_ratio=args.cv_min_noise_ratio,
                        max_effects=args.max_effects, seed=args.seed)
     spec = load_robot(args.robot)
     params = None

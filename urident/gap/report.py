@@ -53,7 +53,8 @@ def _result_dict(res) -> dict:
         "confounded": res.confounds,
         "where": res.where,
         "candidates": steps,
-        "settings": {"min_shrink_pct": res.config.min_shrink_pct, "level": res.config.level,
+        "settings": {"min_shrink_pct": res.config.min_shrink_pct,
+                     "cv_min_noise_ratio": res.config.cv_min_noise_ratio, "level": res.config.level,
                      "n_boot": res.config.n_boot, "n_folds": res.config.n_folds,
                      "block_s": res.config.block_s, "no_effect_text": NO_EFFECT},
     }
@@ -84,7 +85,8 @@ def format_report(res, top: int = 12) -> str:
         lines.append(f" {mark}{c.effect:22s} {s.joint + 1:5d}  {c.mode:5s}  {c.variant[:24]:24s}  "
                      f"{s.gain:11.4g}  [{s.ci[0]:9.3g}, {s.ci[1]:9.3g}]  {s.shrink_pct:5.1f} %")
     lines.append("  (* significant: lower bound > 0 and shrink >= "
-                 f"{res.config.min_shrink_pct:g} % of the joint's RMS)")
+                 f"{res.config.min_shrink_pct:g} % of the joint's RMS; CV mode also a correction "
+                 f"RMS >= {res.config.cv_min_noise_ratio:g} x the joint's white-noise torque)")
     lines.append("")
     if not res.findings:
         lines.append("Findings: no unmodelled effect found")
