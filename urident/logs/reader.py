@@ -85,7 +85,9 @@ def load_log(
 
     ``rows=(first, last)`` keeps data rows first..last, 1-based and inclusive, counted without the
     header line (for a headerless file they are the file's line numbers). Rows with identical
-    content and timestamp are duplicates and removed (count in ``metadata["duplicates_removed"]``).
+    content and timestamp are duplicates and removed (count in ``metadata["duplicates_removed"]``);
+    in a ur_rtde recording, whose recorder thread can tear a row across two packages, every row
+    repeating a timestamp is a duplicate (the first one is kept).
 
     Bad rows (wrong column count, non-numeric, NaN/inf, beyond the sane bound of their quantity,
     non-integer codes, time repeated with other values or going back, joint jumps, a truncated
@@ -120,6 +122,10 @@ class _Loader:
         lines, final_newline = self._read_lines()
         header = self._header(lines[0])
         fmt, cmap, sidecar = self._resolve_format(header)
+        # ur_rtde's recorder samples on its own thread while the receive thread updates the
+        # state, so it writes torn rows: a timestamp repeated with other values. There (and only
+        # there) keep the first row of each timestamp and count the rest as duplicates.
+        self.torn_rows_allowed = fmt == FORMAT_UR_RTDE
         robot = self._resolve_robot(sidecar, fmt)
         status = (sidecar or {}).get("status") or STATUS_UNKNOWN
 
@@ -352,7 +358,8 @@ class _Loader:
         values, nums = values[ok], nums[ok]
 
         t_col = used.index(cmap.columns["t"][0])
-        keep, dup, issues = check_time(values[:, t_col], values, nums, names[t_col])
+        keep, dup, issues = check_time(values[:, t_col], values, nums, names[t_col],
+                                       torn_rows_allowed=self.torn_rows_allowed)
         self._handle(issues)
         self.duplicates += int(dup.sum())
         values, nums = values[keep], nums[keep]

@@ -182,10 +182,12 @@ def check_values(
 
 
 def check_time(
-    t: np.ndarray, values: np.ndarray, line_numbers: np.ndarray, time_name: str
+    t: np.ndarray, values: np.ndarray, line_numbers: np.ndarray, time_name: str,
+    torn_rows_allowed: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, list[Issue]]:
     """Time must increase. A row repeating the previous row exactly is a duplicate (ur_rtde's
-    recorder writes them); a repeated time with other values, or time going back, is bad.
+    recorder writes them); a repeated time with other values, or time going back, is bad —
+    unless ``torn_rows_allowed`` (ur_rtde recordings), where a repeated time is a duplicate too.
     Returns ``(keep mask, duplicate mask, issues)``."""
     n = t.shape[0]
     keep = np.ones(n, dtype=bool)
@@ -199,7 +201,7 @@ def check_time(
             last = k
             continue
         keep[k] = False
-        if t[k] == t[last] and np.array_equal(values[k], values[last]):
+        if t[k] == t[last] and (torn_rows_allowed or np.array_equal(values[k], values[last])):
             dup[k] = True
         elif t[k] == t[last]:
             issues.append(
