@@ -67,5 +67,18 @@ def main(argv: list[str] | None = None) -> int:
         return 70
 
 
+def console() -> None:
+    """The ``urident`` console script: :func:`main`, then exit. When a robot link broke during
+    the run, ur_rtde's clients must not be destroyed (their destructors can crash the process
+    after every file was closed), so the process then ends with ``os._exit``."""
+    code = main()
+    rtde_io = sys.modules.get("urident.session.rtde_io")
+    if rtde_io is not None and rtde_io.links_abandoned():
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    sys.exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    console()

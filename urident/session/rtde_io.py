@@ -14,6 +14,16 @@ import numpy as np
 
 from urident.errors import ConnectionLost, SafetyError
 
+# ur_rtde clients whose connection broke: ur_rtde crashes (SIGSEGV) when such an object is sent
+# commands, disconnected or destroyed while its reconnect thread runs, so they are kept here for
+# the life of the process, and the console script ends with os._exit (see urident.cli.main).
+_ABANDONED: list = []
+
+
+def links_abandoned() -> bool:
+    return bool(_ABANDONED)
+
+
 # Output fields the session records (urident.logs.LOG_FIELDS), in ur_rtde's names.
 RECEIVE_VARIABLES = [
     "timestamp", "actual_q", "actual_qd", "actual_current", "target_q", "target_qd", "target_qdd",
@@ -54,6 +64,7 @@ class RobotLink:
         self.control = None
         self.dashboard = None
         self._stopped = False
+        self._lost = False
 
     # ------------------------------------------------------------------ connection
     def connect_receive(self) -> None:
@@ -102,6 +113,7 @@ class RobotLink:
         """One sample of every recorded field (ur_rtde names), from the latest RTDE package."""
         r = self.receive
         if not r.isConnected():
+            self._lost = True
             raise ConnectionLost(f"RTDE connection to {self.host} lost")
         return {
             "timestamp": r.getTimestamp(),
@@ -123,6 +135,7 @@ class RobotLink:
         """(timestamp, actual_q, safety_status_bits, runtime_state): what the monitors need."""
         r = self.receive
         if not r.isConnected():
+            self._lost = True
             raise ConnectionLost(f"RTDE connection to {self.host} lost")
         return r.getTimestamp(), r.getActualQ(), r.getSafetyStatusBits(), r.getRuntimeState()
 
@@ -185,6 +198,7 @@ class RobotLink:
                 except Exception as exc:  # noqa: BLE001 - shutdown must try every step
                     problems.append(f"{name}: {exc}")
             return problems
+        self._lost = True
         problems.append("control connection lost: servoStop/stopScript could not be sent")
         problems += self._dashboard_stop()
         return problems
@@ -203,6 +217,10 @@ class RobotLink:
 
     def close(self) -> list[str]:
         problems = self.stop()
+        if self._lost:
+            # Never disconnect or destroy a broken ur_rtde client (see _ABANDONED).
+            _ABANDONED.extend(c for c in (self.control, self.receive) if c is not None)
+            self.control = self.receive = None
         for client in (self.control, self.receive):
             if client is not None:
                 try:
