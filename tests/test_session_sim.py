@@ -131,22 +131,29 @@ def test_fault_stops_robot_keeps_log(files, fault, words):
         assert np.allclose(np.diff(log.t), 0.002, atol=1e-6)
 
 
+def interrupt_run(host, files, out, after: str, delay_s: float):
+    """Start `urident run` in its own process, send it SIGINT ``delay_s`` after it printed a line
+    containing ``after``; return the finished process and its stderr."""
+    cmd = [sys.executable, "-m", "urident.cli.main", "run", "--robot", "ur5e", "--host", host,
+           "--trajectory", str(files["ur5e"]), "--out", str(out), "--config", str(files["config"]),
+           "--yes"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            stdin=subprocess.DEVNULL)
+    deadline = time.monotonic() + 60
+    line = ""
+    while after not in line and time.monotonic() < deadline:
+        line = proc.stdout.readline()
+    time.sleep(delay_s)
+    proc.send_signal(signal.SIGINT)
+    _, stderr = proc.communicate(timeout=60)
+    return proc, stderr
+
+
 def test_sigint_stops_robot_and_keeps_log(files):
     out = files["dir"] / "sigint.csv"
     host = "127.0.0.55"
     with SimControllerProcess(host=host, robot="ur5e", initial_q=NEAR_START):
-        cmd = [sys.executable, "-m", "urident.cli.main", "run", "--robot", "ur5e", "--host", host,
-               "--trajectory", str(files["ur5e"]), "--out", str(out), "--config", str(files["config"]),
-               "--yes"]
-        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                stdin=subprocess.DEVNULL)
-        deadline = time.monotonic() + 60
-        line = ""
-        while "running" not in line and time.monotonic() < deadline:
-            line = proc.stdout.readline()
-        time.sleep(1.0)
-        proc.send_signal(signal.SIGINT)
-        stdout, stderr = proc.communicate(timeout=60)
+        proc, stderr = interrupt_run(host, files, out, after="running", delay_s=1.0)
         at_rest, runtime = controller_at_rest(host)
     assert proc.returncode == 4
     assert "interrupted by the operator" in one_line_error(stderr)
@@ -204,18 +211,7 @@ def test_sigint_during_the_approach_stops_the_move(files):
     away = start.copy()
     away[0] += 1.0  # 1 rad at 0.3 rad/s: several seconds of approach
     with SimControllerProcess(host=host, robot="ur5e", initial_q=away):
-        cmd = [sys.executable, "-m", "urident.cli.main", "run", "--robot", "ur5e", "--host", host,
-               "--trajectory", str(files["ur5e"]), "--out", str(out), "--config", str(files["config"]),
-               "--yes"]
-        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                stdin=subprocess.DEVNULL)
-        line = ""
-        deadline = time.monotonic() + 60
-        while "moving to the start" not in line and time.monotonic() < deadline:
-            line = proc.stdout.readline()
-        time.sleep(1.5)
-        proc.send_signal(signal.SIGINT)
-        stdout, stderr = proc.communicate(timeout=60)
+        proc, stderr = interrupt_run(host, files, out, after="moving to the start", delay_s=1.5)
         at_rest, runtime = controller_at_rest(host)
         import rtde_receive
 
