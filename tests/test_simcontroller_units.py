@@ -248,3 +248,23 @@ def test_process_passes_negative_initial_pose_and_reports_startup_failure():
         assert sim.is_running()
     with pytest.raises(SimControllerError, match="did not start"):
         SimControllerProcess(host="127.0.0.39", robot="ur5e", version="not-a-version").start()
+
+
+@pytest.mark.parametrize("robot", ["ur5", "ur5e", "ur10e"])
+def test_tcp_kinematics_match_the_dh_reference_and_differentiate_to_the_speed(robot):
+    from urident.simcontroller.kinematics import DHKinematics, Kinematics
+
+    spec = load_robot(robot)
+    fast, reference = Kinematics.from_spec(spec), DHKinematics.from_spec(spec)
+    rng = np.random.default_rng(7)
+    for offset in (None, [0.0, 0.0, 0.1, 0.0, 0.0, 0.0], [0.01, -0.02, 0.15, 0.1, -0.2, 0.3]):
+        for _ in range(50):
+            q, qd = rng.uniform(-3.0, 3.0, 6), rng.uniform(-2.0, 2.0, 6)
+            for got, want in zip(fast.tcp(q, qd, offset), reference.tcp(q, qd, offset)):
+                np.testing.assert_allclose(got, want, atol=1e-10)
+            # The reported speed is the time derivative of the reported position (and elbow).
+            h = 1e-6
+            ahead, behind = fast.tcp(q + h * qd, qd, offset), fast.tcp(q - h * qd, qd, offset)
+            pose, speed, _, elbow_velocity, _ = fast.tcp(q, qd, offset)
+            np.testing.assert_allclose((ahead[0][:3] - behind[0][:3]) / (2 * h), speed[:3], atol=1e-6)
+            np.testing.assert_allclose((ahead[2] - behind[2]) / (2 * h), elbow_velocity, atol=1e-6)
