@@ -110,12 +110,28 @@ class PointToPoint:
 
 
 def random_ptp(rng, duration: float) -> PointToPoint:
+    """Moves and dwells like a lab's validation run: every move lasts 0.8-6 s, so a run holds
+    many of them (a 30 s run about 7). Half the moves are slow (peak joint speed 0.03-0.12 rad/s
+    over 2-5 s: the near-zero-velocity regime where friction effects show), half go anywhere in
+    the workspace box at 0.2-0.7 rad/s (faster when that would exceed 6 s).
+
+    Why bounded moves: with unbounded ones (the first design), one slow move could fill a 30 s
+    run, so two runs drawn alike often held one or two moves each and an effect's share of the
+    residual, hence any shrink figure, differed between them by tens of points."""
+    lo, hi = HOME - 0.9, HOME + 0.9
     times, poses = [0.0], [HOME + rng.uniform(-0.3, 0.3, 6)]
     while times[-1] < duration:
-        goal = HOME + rng.uniform(-0.9, 0.9, 6)
-        speed = rng.choice([rng.uniform(0.03, 0.12), rng.uniform(0.2, 0.7)])     # slow or normal
-        dist = np.max(np.abs(goal - poses[-1]))
-        move = max(2.0 * dist / speed, 0.8)
+        here = poses[-1]
+        if rng.random() < 0.5:          # slow
+            direction = rng.uniform(-1.0, 1.0, 6)
+            direction /= np.max(np.abs(direction))
+            move = rng.uniform(2.0, 5.0)
+            peak = rng.uniform(0.03, 0.12)
+            goal = np.clip(here + direction * peak * move / 2.0, lo, hi)
+        else:                           # normal
+            goal = HOME + rng.uniform(-0.9, 0.9, 6)
+            dist = np.max(np.abs(goal - here))
+            move = float(np.clip(2.0 * dist / rng.uniform(0.2, 0.7), 0.8, 6.0))
         times.append(times[-1] + move)
         poses.append(goal)
         dwell = rng.uniform(0.4, 1.5)
@@ -299,7 +315,7 @@ def simulate_runs(spec, sc: Scenario, rate: float, duration: float):
     return ident, valid, sealed
 
 
-def run_scenario(spec, sc: Scenario, rate: float = 200.0, duration: float = 30.0, config=None) -> dict:
+def run_scenario(spec, sc: Scenario, rate: float = 200.0, duration: float = 60.0, config=None) -> dict:
     from urident.gap import diagnose
     from urident.gap.data import build_set
     from urident.gap.residual import make_context
@@ -322,7 +338,10 @@ def run_scenario(spec, sc: Scenario, rate: float = 200.0, duration: float = 30.0
            "entries": [t["entry"] for t in sc.truth], "diagnosis_s": wall}
     if not truth:
         out["false_alarm"] = bool(found)
+        out["wrong_findings"] = len(found)
         return out
+    out["wrong_findings"] = sum(1 for (e, _), aff in zip(found, affected)
+                                if not any(e == te and tj in aff for te, tj in truth))
     first = found[0] if found else None
     out["top1"] = bool(first and first[0] in [e for e, _ in truth])
     # joint: the first finding's joint, or for an effect on all joints (payload) any joint it
@@ -368,6 +387,11 @@ def summarise(rows: list[dict]) -> dict:
         "joint_accuracy_pct": 100.0 * np.mean([r["joint_ok"] for r in eff]) if eff else None,
         "all_effects_found_pct": 100.0 * np.mean([r["all_found"] for r in eff]) if eff else None,
         "false_alarms": int(sum(r["false_alarm"] for r in free)),
+        # findings naming an (effect, joint) that is not true, where the true effect does not
+        # matter (the right answer there is "nothing found") and where it does (an extra finding)
+        "wrong_findings_not_visible": int(sum(r["wrong_findings"] for r in eff if not r["visible"])),
+        "not_visible_with_wrong_findings": int(sum(bool(r["wrong_findings"]) for r in eff if not r["visible"])),
+        "wrong_findings_visible": int(sum(r["wrong_findings"] for r in vis)),
         "mean_shrink_error_pts": float(np.mean(shrink)) if shrink else None,
         "max_shrink_error_pts": float(np.max(shrink)) if shrink else None,
         "visible": len(vis),
@@ -386,7 +410,7 @@ def main(argv=None) -> int:
     ap.add_argument("--scenarios", type=int, default=40)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--rate", type=float, default=200.0, help="simulation rate [Hz]")
-    ap.add_argument("--duration", type=float, default=30.0, help="length of each run [s]")
+    ap.add_argument("--duration", type=float, default=60.0, help="length of each run [s] (default 60)")
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args(argv)
 
@@ -428,6 +452,10 @@ def main(argv=None) -> int:
           f"shrink error {summary['mean_shrink_error_visible_pts']:.2f} points "
           f"(max {summary['max_shrink_error_visible_pts']:.1f}); false alarms "
           f"{summary['false_alarms']}/{summary['effect_free']} effect-free")
+    print(f"wrong findings (an effect or joint that is not true): on {summary['not_visible_with_wrong_findings']} "
+          f"of {summary['with_effect'] - summary['visible']} scenarios whose effect does not matter "
+          f"({summary['wrong_findings_not_visible']} findings), {summary['wrong_findings_visible']} extra "
+          f"on the visible ones")
     print(f"shrink-error reference of a validation-based prediction (the true effects' own validation "
           f"shrink vs the sealed run, visible): {summary['mean_shrink_error_oracle_visible_pts']:.2f} points")
     print(json.dumps(summary))

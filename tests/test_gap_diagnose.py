@@ -170,3 +170,18 @@ def test_offset_vs_stribeck_confound_is_flagged(spec):
     assert {"stribeck", "current_offset"} <= pair, format_report(res)
     assert first.confidence == "confounded"
     assert res.as_dict()["confounded"], "the pair is listed in the JSON"
+
+
+def test_fast_warm_up_is_found_with_a_warm_up_curve(spec):
+    """A gearbox warming with a 30 s time constant: friction falls fast, then levels off. A
+    straight line in time misses most of it; the warm-up curve variant finds it on its joint."""
+    effect = ("effects:\n  - name: thermal_drift\n    joints: [2]\n    viscous_change_per_c: -0.015\n"
+              "    coulomb_change_per_c: -0.008\n    warmup_c: 16.0\n    warmup_time_constant_s: 30.0\n")
+    ident = simulate(spec, sines(7, duration=60.0), effect, seed=41)
+    valid = simulate(spec, sines(8, duration=60.0), effect, seed=42)
+    res = diagnose([ident], [valid], spec, config=FAST)
+    assert res.findings, format_report(res)
+    first = res.findings[0]
+    assert (first.effect, first.joint) == ("thermal_drift", 2), format_report(res)
+    assert first.variant.startswith("warm-up")
+    assert first.shrink_pct > 10

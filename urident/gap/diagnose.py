@@ -14,6 +14,9 @@ it shrinks.
    torque, :func:`material_cv`). Greedy forward selection: the best significant candidate is kept,
    the others are tested again on top, until none is
    significant (or ``max_effects``). None at the first step: "no unmodelled effect found".
+   Then the backward half of stepwise selection (:func:`_backward`): each chosen effect is tested
+   again on top of the others; those no longer significant are dropped, and the findings are
+   ordered by their unique contribution.
    Confounds: a candidate of another effect (or joint) whose predicted correction correlates with
    the chosen one's (uncentred) by |ρ| ≥ ``confound_corr`` and whose improvement interval
    overlaps the chosen one's is reported as confounded with it.
@@ -247,9 +250,48 @@ def diagnose_prepared(spec, ident: GapSet, valid: GapSet, *, params=None,
         selected.append(best.candidate)
         current = best.fit
 
+    if len(selected) > 1:
+        kept = _backward(scorer, selected, block, config)
+        if [id(c) for c in kept] != [id(c) for c in selected]:
+            # findings and confounds again, step by step in the kept order
+            findings, confounds, current = [], [], scorer.evaluate([])
+            for step, c in enumerate(kept):
+                done = {o.key for o in kept[:step]}
+                scores = _score_all(scorer, current, [o for o in pool if o.key not in done], block, config)
+                s = next(x for x in scores if x.candidate is c)
+                conf = _confounded(s, scores, block, config)
+                for other in conf:
+                    confounds.append({"step": step + 1, "chosen": _label(s), "alternative": _label(other),
+                                      "correlation": float(_corr(s.change, other.change)),
+                                      "gain_nm2": [s.gain, other.gain]})
+                findings.append(_finding(s, conf, ctx_v, spec))
+                current = s.fit
+
     final_r = current.residual
     return GapResult(spec.name, model, ctx_i, ctx_v, _e_n(r0), _rms(r0), _e_n(final_r), _rms(final_r),
                      findings, current, steps, confounds, where, config, scorer)
+
+
+def _backward(scorer: Scorer, selected: list[Candidate], block: int, config: GapConfig) -> list[Candidate]:
+    """The backward half of stepwise selection, on the forward pass's choices: each chosen effect
+    is tested again on top of all the others (same tests as when it was chosen); the weakest one
+    that is no longer significant is dropped, until all are. The kept ones are returned ordered
+    by that unique contribution, largest first.
+
+    Why: the first forward step compares single effects, and an identification-mode effect
+    distorts the base parameters shared by neighbouring joints (e.g. a drive-gain error of joint
+    2 shows on joint 3 too), so a wrong joint can win it by a hair; once the right effect has
+    been added as well, the wrong one explains nothing more."""
+    kept = list(selected)
+    while True:
+        tests = []
+        for c in kept:
+            rest = scorer.evaluate([o for o in kept if o is not c])
+            tests.append(_score_all(scorer, rest, [c], block, config)[0])
+        weakest = min(tests, key=lambda s: s.gain)
+        if len(kept) == 1 or weakest.significant:
+            return [s.candidate for s in sorted(tests, key=lambda s: -s.gain)]
+        kept.remove(weakest.candidate)
 
 
 def _ident_shortlist(scorer: Scorer, selected: list[Candidate], free: list[Candidate],
@@ -445,7 +487,8 @@ def _finding(best: Score, conf: list[Score], ctx: SetContext, spec) -> Finding:
         fm = maps.frequency_map(base_r[:, j], ctx.data.sample_rate, ctx.dtau[:, j])
         regime += f"; residual vs dτ̂/dt correlation {fm.corr_dtau:+.2f}"
     lo, hi = best.ci
-    if conf:
+    labels = tuple(_label(s) for s in conf)
+    if labels:
         confidence = "confounded"
     else:
         z = best.gain / max((hi - lo) / (2 * 1.96), 1e-300)
@@ -457,7 +500,7 @@ def _finding(best: Score, conf: list[Score], ctx: SetContext, spec) -> Finding:
         joints = tuple(int(k) + 1 for k in np.flatnonzero(share >= MAIN_SHARE * share.max()))
     return Finding(j + 1, c.effect, c.variant, c.mode, regime, float(before), float(after),
                    best.shrink_pct, confidence, (lo, hi), c.magnitude(coef, spec),
-                   tuple(_label(s) for s in conf), joints)
+                   labels, joints)
 
 
 def describe_where(ctx: SetContext) -> dict:
