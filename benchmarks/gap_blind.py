@@ -372,6 +372,10 @@ def run_scenario(spec, sc: Scenario, rate: float = 200.0, duration: float = 60.0
     return out
 
 
+def _max_actual(row: dict) -> float:
+    return max(s["actual_shrink_pct"] for s in row["shrink"])
+
+
 def summarise(rows: list[dict]) -> dict:
     eff = [r for r in rows if r["truth"]]
     free = [r for r in rows if not r["truth"]]
@@ -401,6 +405,11 @@ def summarise(rows: list[dict]) -> dict:
         "max_shrink_error_visible_pts": float(np.max(shrink_vis)) if shrink_vis else None,
         "mean_shrink_error_oracle_visible_pts": float(np.mean(oracle_vis)) if oracle_vis else None,
         "targets_judged_on": "visible (shrink error, top-1, joint) and all effect-free (false alarms)",
+        # where the misses lie: visible scenarios by their largest actual shrink
+        "joint_accuracy_by_actual_shrink": {
+            label: [int(sum(r["joint_ok"] for r in band)), len(band)]
+            for label, band in (("3-10 %", [r for r in vis if _max_actual(r) < 10.0]),
+                                (">= 10 %", [r for r in vis if _max_actual(r) >= 10.0]))},
         "mean_diagnosis_s": float(np.mean([r["diagnosis_s"] for r in rows])) if rows else None,
     }
 
@@ -452,6 +461,8 @@ def main(argv=None) -> int:
           f"shrink error {summary['mean_shrink_error_visible_pts']:.2f} points "
           f"(max {summary['max_shrink_error_visible_pts']:.1f}); false alarms "
           f"{summary['false_alarms']}/{summary['effect_free']} effect-free")
+    bands = summary["joint_accuracy_by_actual_shrink"]
+    print("joint accuracy by actual shrink: " + ", ".join(f"{k}: {ok}/{n}" for k, (ok, n) in bands.items()))
     print(f"wrong findings (an effect or joint that is not true): on {summary['not_visible_with_wrong_findings']} "
           f"of {summary['with_effect'] - summary['visible']} scenarios whose effect does not matter "
           f"({summary['wrong_findings_not_visible']} findings), {summary['wrong_findings_visible']} extra "

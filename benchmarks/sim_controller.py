@@ -142,6 +142,8 @@ def main() -> int:
         "cycles": stats.get("cycles"),
         "late_cycles": stats.get("late_cycles"),
         "late_cycle_pct": stats.get("late_cycle_pct"),
+        "late_wakeups": stats.get("late_wakeups"),
+        "max_work_ms": 1000.0 * stats.get("max_work_s", float("nan")),
         "host_floor_late_pct": floor_pct,
         "excess_late_pct": stats.get("late_cycle_pct", float("nan")) - floor_pct,
         "host_floor_max_lateness_ms": 1000.0 * floor.get("max_lateness_s", float("nan")),

@@ -16,6 +16,7 @@ running the missed cycles back to back.
 from __future__ import annotations
 
 import errno
+import gc
 import json
 import selectors
 import socket
@@ -272,8 +273,8 @@ class SimControllerServer:
         self._input_owners: dict[str, RtdeConnection] = {}
         self._logged: set[str] = set()
         self.recipes_seen: dict[str, list[list[str]]] = {"output": [], "input": []}
-        self.stats = {"cycles": 0, "late_cycles": 0, "max_lateness_s": 0.0, "resyncs": 0,
-                      "dropped_packages": 0}
+        self.stats = {"cycles": 0, "late_cycles": 0, "late_wakeups": 0, "max_lateness_s": 0.0,
+                      "max_work_s": 0.0, "resyncs": 0, "dropped_packages": 0}
 
     # ------------------------------------------------------------ sockets
     def bind(self) -> None:
@@ -407,6 +408,10 @@ class SimControllerServer:
         controller = self.controller
         period = controller.dt
         late_after = LATE_FRACTION * period
+        # Move everything allocated so far (models, tables) out of the collector's reach: a full
+        # collection over it takes milliseconds, in whichever thread happens to trigger it.
+        gc.collect()
+        gc.freeze()
         stats = self.stats
         clock = time.perf_counter
         cpu_start = time.process_time()
@@ -428,6 +433,10 @@ class SimControllerServer:
                 stats["cycles"] += 1
                 if lateness > late_after:
                     stats["late_cycles"] += 1
+                    if start - deadline > late_after:
+                        stats["late_wakeups"] += 1      # late before any work: the scheduler
+                if end - start > stats["max_work_s"]:
+                    stats["max_work_s"] = end - start
                 if lateness > stats["max_lateness_s"]:
                     stats["max_lateness_s"] = lateness
                 deadline += period

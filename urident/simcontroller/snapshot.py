@@ -1,12 +1,11 @@
 """One controller cycle's output values, by RTDE field name (see :mod:`.fields`).
 
 A :class:`Snapshot` is built by the controller thread after each physics step that has a data
-package due; attributes are computed on first use, so a recipe pays only for what it asks.
+package due. The joint vectors are converted together when it is built; the Cartesian values
+(forward kinematics) are computed on first use, so a recipe without them does not pay for them.
 """
 
 from __future__ import annotations
-
-from functools import cached_property
 
 import numpy as np
 
@@ -38,59 +37,28 @@ class Snapshot:
         self.output_bit_registers = c.registers.output_bits
         self.actual_execution_time = c.last_execution_time_s * 1000.0
         self.target_execution_time = c.dt * 1000.0
+        self._tcp = None
+        self._joint_vectors()
 
     # ------------------------------------------------------------ joints
-    @cached_property
-    def actual_q(self):
-        return self._p.measured_q.tolist()
+    def _joint_vectors(self) -> None:
+        # All joint vectors in one numpy call: per-field properties cost more than the arithmetic
+        # (this runs every cycle for every recipe that has a package due).
+        p = self._p
+        (self.actual_q, self.target_q, self.actual_qd, self.target_qdd, self.actual_current,
+         self.target_current, self.target_moment, self.joint_control_output,
+         self.actual_current_as_torque, self.joint_temperatures) = np.stack([
+            p.measured_q, p.q, p.qd, p.qdd, p.measured_current, p.target_current, p.tau_model,
+            p.current, p.measured_current * p.drive_gains, p.temperatures]).tolist()
+        self.target_qd = self.actual_qd
 
-    @cached_property
-    def target_q(self):
-        return self._p.q.tolist()
-
-    @cached_property
-    def actual_qd(self):
-        return self._p.qd.tolist()
-
-    @cached_property
-    def target_qd(self):
-        return self._p.qd.tolist()
-
-    @cached_property
-    def target_qdd(self):
-        return self._p.qdd.tolist()
-
-    @cached_property
-    def actual_current(self):
-        return self._p.measured_current.tolist()
-
-    @cached_property
-    def target_current(self):
-        return self._p.target_current.tolist()
-
-    @cached_property
-    def target_moment(self):
-        return self._p.tau_model.tolist()
-
-    @cached_property
-    def joint_control_output(self):
-        return self._p.current.tolist()
-
-    @cached_property
-    def actual_current_as_torque(self):
-        return (self._p.measured_current * self._p.drive_gains).tolist()
-
-    @cached_property
+    @property
     def actual_current_window(self):
         return (0.5 + 0.1 * np.abs(self._p.target_current)).tolist()
 
-    @cached_property
-    def joint_temperatures(self):
-        return self._p.temperatures.tolist()
-
-    @cached_property
+    @property
     def actual_joint_voltage(self):
-        return [MAIN_VOLTAGE_V - 0.05 * abs(i) for i in self._p.current.tolist()]
+        return [MAIN_VOLTAGE_V - 0.05 * abs(i) for i in self.joint_control_output]
 
     @property
     def joint_mode(self):
@@ -98,11 +66,13 @@ class Snapshot:
         return [JOINT_MODE_RUNNING if powered else JOINT_MODE_POWER_OFF] * 6
 
     # ------------------------------------------------------------ Cartesian
-    @cached_property
+    @property
     def _actual_tcp(self):
         # One forward-kinematics evaluation serves actual and target: they differ only by the
         # encoder quantization (~1e-5 m at the TCP).
-        return self._c.kinematics.tcp(self._p.q, self._p.qd, self._c.tcp_offset)
+        if self._tcp is None:
+            self._tcp = self._c.kinematics.tcp(self._p.q, self._p.qd, self._c.tcp_offset)
+        return self._tcp
 
     @property
     def _target_tcp(self):
