@@ -7,9 +7,11 @@ it shrinks.
    (:mod:`.maps`); the regimes where the energy concentrates.
 3. Which: every candidate of :mod:`.candidates` (per effect, joint and mode; per family the
    variant that fits the fitting data best) is added to the current model and scored on held-out
-   validation data: per-sample improvement d_k = Σ_j (r_kj² − r'_kj²). Its mean gets a block
-   bootstrap interval (blocks of ~1 s). A candidate is *significant* when the lower bound is > 0
-   and it shrinks its joint's RMS by at least ``min_shrink_pct``; a CV-mode candidate must also be
+   validation data: per-sample improvement d_k = Σ_j (r_kj² − r'_kj²) and the same on the
+   candidate's own joint. The means get block bootstrap intervals (blocks of ~1 s). A candidate
+   is *significant* when the own joint's lower bound is > 0, the summed improvement is positive
+   (``test="own"``; ``"total"``: the summed improvement's lower bound > 0) and it shrinks its
+   joint's RMS by at least ``min_shrink_pct``; a CV-mode candidate must also be
    material in absolute terms (correction RMS >= ``cv_min_noise_ratio`` × the joint's white-noise
    torque, :func:`material_cv`). Greedy forward selection: the best significant candidate is kept,
    the others are tested again on top, until none is
@@ -61,11 +63,16 @@ class GapConfig:
     block_s: float = 1.0             # bootstrap block length [s]
     friction_eps: float = 0.01       # [rad/s] the baseline's tanh slope
     seed: int = 0
+    test: str = "own"                # held-out test: "own" (interval of the gain on the
+                                     # candidate's joint above 0, summed gain positive) or "total"
+                                     # (interval of the gain summed over joints above 0)
 
     def __post_init__(self) -> None:
         unknown = [e for e in self.effects if e not in EFFECTS]
         if unknown:
             raise ConfigError(f"effect {unknown[0]!r} unknown (known: {', '.join(EFFECTS)})")
+        if self.test not in ("own", "total"):
+            raise ConfigError(f"gap config: test must be 'own' or 'total', not {self.test!r}")
         if not (0 < self.level < 1) or self.n_boot < 50 or self.max_effects < 0:
             raise ConfigError("gap config: level in (0, 1), n_boot >= 50, max_effects >= 0")
 
@@ -349,7 +356,11 @@ def _score_all(scorer: Scorer, current: Fit, pool: list[Candidate], block: int,
     if not fits:
         return []
     d = np.stack([np.sum(base ** 2 - f.residual ** 2, axis=1) for f in fits], axis=1)   # (N, m)
-    boot = block_bootstrap_means(d, block, config.n_boot, config.seed)
+    # the same improvement on the candidate's own joint (all-joint candidates: the total)
+    d_own = np.stack([base[:, c.joint] ** 2 - f.residual[:, c.joint] ** 2 if c.joint is not None
+                      else d[:, i] for i, (c, f) in enumerate(zip(pool, fits))], axis=1)
+    boot_all = block_bootstrap_means(np.hstack([d, d_own]), block, config.n_boot, config.seed)
+    boot, boot_own = boot_all[:, :len(pool)], boot_all[:, len(pool):]
     rms0 = _rms(base)
     sigma = noise_sigma(scorer.valid.residual)
     out = []
@@ -359,7 +370,17 @@ def _score_all(scorer: Scorer, current: Fit, pool: list[Candidate], block: int,
         lo, hi = interval(boot[:, i], config.level)
         s = Score(c, f, float(d[:, i].mean()), (lo, hi), joint, rms0, rms1, False,
                   base - f.residual, d[:, i])
-        s.significant = bool(lo > 0 and s.shrink_pct >= config.min_shrink_pct
+        # Why the own joint by default: an identification-mode candidate refits the base parameters,
+        # and that moves the other joints' predictions by a little, consistently, either way. Summed
+        # in, this collateral can hide a clear gain on the candidate's joint (a warm-up on joint 2
+        # with 15 % shrink there, summed interval touching 0). The summed mean must still be > 0 so
+        # a candidate that costs the other joints more than it gains is never taken. Checked on
+        # effect-free scenarios only (42 of benchmarks/gap_blind.py, seeds 1-6): no false alarm.
+        if config.test == "own":
+            held_out = interval(boot_own[:, i], config.level)[0] > 0 and s.gain > 0
+        else:
+            held_out = lo > 0
+        s.significant = bool(held_out and s.shrink_pct >= config.min_shrink_pct
                              and plausible(c, f.coefficients()[id(c)])
                              and (c.mode != "cv" or material_cv(s.change[:, joint], sigma[joint],
                                                                 config.cv_min_noise_ratio)))
