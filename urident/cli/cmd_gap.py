@@ -17,7 +17,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "the identification logs (or load it with --params), explain its residual on the "
                     "validation logs: where it concentrates (velocity, load, angle, time, "
                     "frequency), which effect of the catalogue explains it (held-out scores with "
-                    "block-bootstrap intervals, greedy forward selection, confounds) and how far "
+                    "block-bootstrap intervals, stepwise selection, confounds) and how far "
                     "it shrinks (validation RMS per joint and e_N, measured torque = drive gains "
                     "x raw current).")
     p.add_argument("--robot", required=True, help="robot name or robot file")
@@ -44,7 +44,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "joint by an RMS of at least RATIO x the joint's white-noise torque "
                         "(default 0.5; 0 turns the floor off)")
     p.add_argument("--max-effects", type=int, default=3, metavar="N",
-                   help="at most this many effects (greedy forward selection, default 3)")
+                   help="at most this many effects (stepwise selection, default 3)")
     p.add_argument("--seed", type=int, default=0, help="bootstrap seed (default 0)")
     sink = p.add_mutually_exclusive_group()
     sink.add_argument("--rerun", action="store_true", help="send residual maps and comparison to a Rerun viewer")

@@ -91,7 +91,7 @@ def format_report(res, top: int = 12) -> str:
     if not res.findings:
         lines.append("Findings: no unmodelled effect found")
     else:
-        lines.append("Findings (greedy forward selection):")
+        lines.append("Findings (stepwise selection: forward, then backward):")
         for k, x in enumerate(res.findings):
             mag = ", ".join(f"{key} = {_fmt(v)}" for key, v in x.magnitude.items() if key != "coefficients")
             also = [jj for jj in x.joints if jj != x.joint]
