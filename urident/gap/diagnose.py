@@ -249,10 +249,7 @@ def diagnose_prepared(spec, ident: GapSet, valid: GapSet, *, params=None,
                 break
             best = max(sig, key=lambda s: s.gain)
         conf = _confounded(best, scores, block, config)
-        for other in conf:
-            confounds.append({"step": step + 1, "chosen": _label(best), "alternative": _label(other),
-                              "correlation": float(_corr(best.change, other.change)),
-                              "gain_nm2": [best.gain, other.gain]})
+        confounds += _confound_rows(step, best, conf)
         findings.append(_finding(best, conf, ctx_v, spec))
         selected.append(best.candidate)
         current = best.fit
@@ -267,16 +264,20 @@ def diagnose_prepared(spec, ident: GapSet, valid: GapSet, *, params=None,
                 scores = _score_all(scorer, current, [o for o in pool if o.key not in done], block, config)
                 s = next(x for x in scores if x.candidate is c)
                 conf = _confounded(s, scores, block, config)
-                for other in conf:
-                    confounds.append({"step": step + 1, "chosen": _label(s), "alternative": _label(other),
-                                      "correlation": float(_corr(s.change, other.change)),
-                                      "gain_nm2": [s.gain, other.gain]})
+                confounds += _confound_rows(step, s, conf)
                 findings.append(_finding(s, conf, ctx_v, spec))
                 current = s.fit
 
     final_r = current.residual
     return GapResult(spec.name, model, ctx_i, ctx_v, _e_n(r0), _rms(r0), _e_n(final_r), _rms(final_r),
                      findings, current, steps, confounds, where, config, scorer)
+
+
+def _confound_rows(step: int, chosen: Score, conf: list[Score]) -> list[dict]:
+    """The report's rows for the candidates confounded with ``chosen`` at 0-based ``step``."""
+    return [{"step": step + 1, "chosen": _label(chosen), "alternative": _label(other),
+             "correlation": float(_corr(chosen.change, other.change)), "gain_nm2": [chosen.gain, other.gain]}
+            for other in conf]
 
 
 def _backward(scorer: Scorer, selected: list[Candidate], block: int, config: GapConfig) -> list[Candidate]:
