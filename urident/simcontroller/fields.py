@@ -100,13 +100,20 @@ OUTPUT_FIELDS: dict[str, FieldInfo] = {
     "target_execution_time": FieldInfo(_D, None, (5, 0)),
     "control_step": FieldInfo("UINT64", None, (5, 0)),
 }
-for _n in range(48):
-    _old = (3, 4) if _n < 24 else (3, 9)
-    _new = (5, 0) if _n < 24 else (5, 3)
-    OUTPUT_FIELDS[f"output_int_register_{_n}"] = FieldInfo("INT32", _old, _new)
-    OUTPUT_FIELDS[f"output_double_register_{_n}"] = FieldInfo(_D, _old, _new)
-for _n in range(64, 128):
-    OUTPUT_FIELDS[f"output_bit_register_{_n}"] = FieldInfo("BOOL", (3, 4), (5, 0))
+
+
+def _add_registers(table: dict[str, FieldInfo], prefix: str) -> None:
+    """General-purpose registers: int and double 0-23 since 3.4 / 5.0, 24-47 since 3.9 / 5.3;
+    bits 64-127 since 3.4 / 5.0."""
+    for n in range(48):
+        old, new = ((3, 4), (5, 0)) if n < 24 else ((3, 9), (5, 3))
+        table[f"{prefix}_int_register_{n}"] = FieldInfo("INT32", old, new)
+        table[f"{prefix}_double_register_{n}"] = FieldInfo(_D, old, new)
+    for n in range(64, 128):
+        table[f"{prefix}_bit_register_{n}"] = FieldInfo("BOOL", (3, 4), (5, 0))
+
+
+_add_registers(OUTPUT_FIELDS, "output")
 
 INPUT_FIELDS: dict[str, FieldInfo] = {
     "speed_slider_mask": FieldInfo("UINT32"),
@@ -125,13 +132,7 @@ INPUT_FIELDS: dict[str, FieldInfo] = {
     "input_bit_registers32_to_63": FieldInfo("UINT32"),
     "external_force_torque": FieldInfo(_V6D),
 }
-for _n in range(48):
-    _old = (3, 4) if _n < 24 else (3, 9)
-    _new = (5, 0) if _n < 24 else (5, 3)
-    INPUT_FIELDS[f"input_int_register_{_n}"] = FieldInfo("INT32", _old, _new)
-    INPUT_FIELDS[f"input_double_register_{_n}"] = FieldInfo(_D, _old, _new)
-for _n in range(64, 128):
-    INPUT_FIELDS[f"input_bit_register_{_n}"] = FieldInfo("BOOL", (3, 4), (5, 0))
+_add_registers(INPUT_FIELDS, "input")
 
 
 def output_type(name: str, version: Version) -> str | None:
