@@ -75,3 +75,21 @@ def test_warm_up_whose_refit_costs_other_joints_a_little_is_still_found(gb, robo
     assert row["shrink"][0]["error_pts"] < 10
     total = gb.run_scenario(robot, sc, rate=200.0, duration=60.0, config=GapConfig(test="total"))
     assert total["found"] == []
+
+
+def test_offset_confounded_with_a_ripple_is_named_as_the_simpler_offset(gb, robot):
+    """Seed 5, scenario 13 of the benchmark: a −32 mA current offset on joint 2. A second-harmonic
+    ripple there fits the validation run as well (correlation 0.99) and, with its two
+    coefficients, 2 % better; the diagnosis names the one-coefficient offset and reports the
+    ripple as confounded with it."""
+    sc = gb.draw_scenario(13, 5)
+    assert [(t["effect"], t["joint"]) for t in sc.truth] == [("current_offset", 1)]
+    ident, valid, _ = gb.simulate_runs(robot, sc, 200.0, 60.0)
+    from urident.gap import diagnose
+
+    res = diagnose([gb._strip(ident)], [gb._strip(valid)], robot)
+    first = res.findings[0]
+    assert (first.effect, first.joint) == ("current_offset", 2)
+    assert first.confidence == "confounded"
+    assert any(c.startswith("position_ripple on joint 2") for c in first.confounded_with)
+    assert first.magnitude["offset_a"] * 1000 == pytest.approx(-32.1, abs=8)

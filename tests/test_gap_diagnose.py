@@ -185,3 +185,76 @@ def test_fast_warm_up_is_found_with_a_warm_up_curve(spec):
     assert (first.effect, first.joint) == ("thermal_drift", 2), format_report(res)
     assert first.variant.startswith("warm-up")
     assert first.shrink_pct > 10
+
+
+def _score(effect, k, d, significant=True, mode="ident"):
+    """A scored candidate with ``k`` columns and per-sample improvements ``d`` (for the selection
+    rules, which read only these)."""
+    from urident.gap.candidates import Candidate
+    from urident.gap.diagnose import Score
+
+    cols = tuple(f"c{i}" for i in range(k))
+    c = Candidate(effect, 1, "", mode, cols, lambda ctx: None)
+    zero = np.zeros(6)
+    return Score(c, None, float(np.mean(d)), (0.0, 0.0), 1, zero, zero, significant,
+                 np.zeros((len(d), 6)), np.asarray(d, float))
+
+
+def test_a_confounded_simpler_explanation_as_good_as_the_best_is_chosen():
+    from urident.gap.diagnose import _simplest_equivalent
+
+    rng = np.random.default_rng(0)
+    base = 1.0 + rng.normal(0.0, 0.3, 4000)
+    cfg = GapConfig(n_boot=300)
+    ripple = _score("position_ripple", 2, base * 1.02)     # two columns, 2 % more gain
+    offset = _score("current_offset", 1, base)             # one column
+    assert _simplest_equivalent(ripple, [offset], [ripple, offset], 200, cfg) is offset
+    # clearly worse (20 % less gain, far outside the paired interval): the best stays
+    weak = _score("current_offset", 1, base * 0.8)
+    assert _simplest_equivalent(ripple, [weak], [ripple, weak], 200, cfg) is ripple
+    # not significant, or not simpler: the best stays
+    insig = _score("current_offset", 1, base, significant=False)
+    assert _simplest_equivalent(ripple, [insig], [ripple, insig], 200, cfg) is ripple
+    drift = _score("thermal_drift", 2, base)
+    assert _simplest_equivalent(ripple, [drift], [ripple, drift], 200, cfg) is ripple
+    # no tolerance: only the paired interval decides, and 2 % more gain with this little noise
+    # is a real difference
+    strict = GapConfig(n_boot=300, parsimony_tol=0.0)
+    assert _simplest_equivalent(ripple, [offset], [ripple, offset], 200, strict) is ripple
+
+
+def test_the_logged_target_moment_is_reported_beside_the_identified_model(spec):
+    """The controller's model (target moment) on the validation samples: here the robot file's
+    rigid-body model, so the identified rigid-body part agrees with it to a small fraction of
+    the torque, and measured − target is the current noise."""
+    ident = simulate(spec, sines(1), None, seed=11)
+    plain = simulate(spec, sines(2), None, seed=12)
+    q, qd, qdd = sines(2).evaluate(plain.t)
+    target = joint_torques(spec, _without_friction(spec), q, qd, qdd)
+    friction = joint_torques(spec, spec.nominal_params, q, qd, qdd) - target
+    from dataclasses import replace
+
+    valid = replace(plain, target_moment=target)
+    res = diagnose([ident], [valid], spec, config=FAST)
+    ref = res.as_dict()["where"]["controller_model"]
+    tgt = np.array(ref["target_rms_nm"])
+    assert np.all(np.array(ref["rigid_body_minus_target_rms_nm"]) < 0.05 * tgt + 0.05)
+    noise = 0.02 * np.asarray(spec.drive_gains, float)
+    meas = np.array(ref["measured_minus_target_rms_nm"])
+    # measured - target = friction (not in the target moment) + noise
+    fr = np.sqrt(np.mean(friction ** 2, axis=0))
+    assert np.all(meas >= 0.8 * np.sqrt(fr ** 2 + noise ** 2))
+    assert np.all(meas <= 1.2 * np.sqrt(fr ** 2 + noise ** 2) + 0.05)
+    assert "Logged target moment" in format_report(res)
+    # no target moment logged: no reference, no line
+    res2 = diagnose([ident], [plain], spec, config=FAST)
+    assert res2.as_dict()["where"]["controller_model"] is None
+    assert "Logged target moment" not in format_report(res2)
+
+
+def _without_friction(spec):
+    from urident.model.parameters import VISCOUS_OFFSET
+
+    p = np.array(spec.nominal_params, float)
+    p[VISCOUS_OFFSET:] = 0.0        # viscous and Coulomb coefficients
+    return p

@@ -17,9 +17,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "the identification logs (or load it with --params), explain its residual on the "
                     "validation logs: where it concentrates (velocity, load, angle, time, "
                     "frequency), which effect of the catalogue explains it (held-out scores with "
-                    "block-bootstrap intervals, stepwise selection, confounds) and how far "
-                    "it shrinks (validation RMS per joint and e_N, measured torque = drive gains "
-                    "x raw current).")
+                    "block-bootstrap intervals, stepwise selection, confounds: of two "
+                    "explanations the data cannot tell apart, the one with fewer coefficients is "
+                    "named and the other listed) and how far it shrinks (validation RMS per joint "
+                    "and e_N, measured torque = drive gains x raw current). When the logs hold the "
+                    "controller's target moment, its agreement with the measured torque and with "
+                    "the identified rigid-body model is shown beside.")
     p.add_argument("--robot", required=True, help="robot name or robot file")
     p.add_argument("--ident", nargs="+", required=True, metavar="LOG", help="identification log(s)")
     p.add_argument("--valid", nargs="+", required=True, metavar="LOG", help="validation log(s)")

@@ -56,7 +56,8 @@ def _result_dict(res) -> dict:
         "settings": {"min_shrink_pct": res.config.min_shrink_pct,
                      "cv_min_noise_ratio": res.config.cv_min_noise_ratio, "level": res.config.level,
                      "n_boot": res.config.n_boot, "n_folds": res.config.n_folds,
-                     "block_s": res.config.block_s, "no_effect_text": NO_EFFECT},
+                     "block_s": res.config.block_s, "parsimony_tol": res.config.parsimony_tol,
+                     "confound_corr": res.config.confound_corr, "no_effect_text": NO_EFFECT},
     }
 
 
@@ -75,6 +76,15 @@ def format_report(res, top: int = 12) -> str:
     for jd in res.where["joints"]:
         for text in jd["regimes"]:
             lines.append(f"  - {text}")
+    ref = res.where.get("controller_model")
+    if ref:
+        fmt = lambda xs: " ".join(f"{x:7.3f}" for x in xs)   # noqa: E731
+        lines.append("  Logged target moment (the controller's model for the target motion), RMS per joint [Nm]:")
+        lines.append(f"    target moment                       {fmt(ref['target_rms_nm'])}")
+        lines.append(f"    measured - target moment            {fmt(ref['measured_minus_target_rms_nm'])}")
+        lines.append(f"    identified rigid body - target      {fmt(ref['rigid_body_minus_target_rms_nm'])}")
+        scale = " ".join("      -" if x is None else f"{x:7.3f}" for x in ref["measured_over_target_scale"])
+        lines.append(f"    measured / target (LS scale)        {scale}")
     lines.append("")
     lines.append("Which (first step: each candidate added alone; held-out gain, 95 % interval):")
     lines.append("  effect                 joint  mode   variant                    gain [Nm^2]"
