@@ -435,12 +435,44 @@ def summarise(rows: list[dict]) -> dict:
     }
 
 
+def _print_summary(summary: dict) -> None:
+    if summary["with_effect"]:
+        print(f"all {summary['with_effect']} effect scenarios: top-1 {summary['top1_accuracy_pct']:.1f} %, "
+              f"joint {summary['joint_accuracy_pct']:.1f} %, mean |predicted - actual shrink| "
+              f"{summary['mean_shrink_error_pts']:.2f} points (max {summary['max_shrink_error_pts']:.1f})")
+    if summary["visible"]:
+        print(f"visible {summary['visible']} (targets judged here): top-1 "
+              f"{summary['top1_accuracy_visible_pct']:.1f} %, joint {summary['joint_accuracy_visible_pct']:.1f} %, "
+              f"shrink error {summary['mean_shrink_error_visible_pts']:.2f} points "
+              f"(max {summary['max_shrink_error_visible_pts']:.1f})")
+        print(f"joint only (the first finding's joint is a true effect's joint, any effect), visible: "
+              f"{summary['joint_only_accuracy_visible_pct']:.1f} %")
+    if summary["findable"]:
+        print(f"findable {summary['findable']} (visible, and the true effect shrinks the validation run by "
+              f">= {VISIBLE_PCT:g} % too): top-1 {summary['top1_accuracy_findable_pct']:.1f} %, joint "
+              f"{summary['joint_accuracy_findable_pct']:.1f} %")
+    if summary["visible"]:
+        bands = summary["joint_accuracy_by_actual_shrink"]
+        print("joint accuracy by actual shrink: " + ", ".join(f"{k}: {ok}/{n}" for k, (ok, n) in bands.items()))
+    print(f"false alarms: {summary['false_alarms']} of {summary['effect_free']} effect-free scenarios")
+    if summary["with_effect"]:
+        print(f"wrong findings (an effect or joint that is not true): on {summary['not_visible_with_wrong_findings']} "
+              f"of {summary['with_effect'] - summary['visible']} scenarios whose effect does not matter "
+              f"({summary['wrong_findings_not_visible']} findings), {summary['wrong_findings_visible']} extra "
+              f"on the visible ones")
+    if summary["visible"]:
+        print(f"shrink-error reference of a validation-based prediction (the true effects' own validation "
+              f"shrink vs the sealed run, visible): {summary['mean_shrink_error_oracle_visible_pts']:.2f} points")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--scenarios", type=int, default=40)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--rate", type=float, default=200.0, help="simulation rate [Hz]")
     ap.add_argument("--duration", type=float, default=60.0, help="length of each run [s] (default 60)")
+    ap.add_argument("--effect-free", action="store_true",
+                    help="every scenario effect-free: a false-alarm scan (the default mix has one in six)")
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args(argv)
 
@@ -450,7 +482,7 @@ def main(argv=None) -> int:
     rows = []
     t0 = time.perf_counter()
     for i in range(args.scenarios):
-        sc = draw_scenario(i, args.seed)
+        sc = draw_scenario(i, args.seed, kinds=("none",)) if args.effect_free else draw_scenario(i, args.seed)
         row = run_scenario(spec, sc, args.rate, args.duration)
         rows.append(row)
         truth = ", ".join(f"{t['effect']}@{t['joint']}" for t in row["truth"]) or "none"
@@ -472,30 +504,9 @@ def main(argv=None) -> int:
           f"a correction RMS >= {cfg.cv_min_noise_ratio:g} x the joint's white-noise torque "
           f"(calibrated on effect-free scenarios only)")
     summary.update(min_shrink_pct=cfg.min_shrink_pct, cv_min_noise_ratio=cfg.cv_min_noise_ratio)
-    summary.update(seed=args.seed, rate_hz=args.rate, duration_s=args.duration,
+    summary.update(seed=args.seed, rate_hz=args.rate, duration_s=args.duration, effect_free_only=args.effect_free,
                    wall_s=time.perf_counter() - t0)
-    print(f"all {summary['with_effect']} effect scenarios: top-1 {summary['top1_accuracy_pct']:.1f} %, "
-          f"joint {summary['joint_accuracy_pct']:.1f} %, mean |predicted - actual shrink| "
-          f"{summary['mean_shrink_error_pts']:.2f} points (max {summary['max_shrink_error_pts']:.1f})")
-    print(f"visible {summary['visible']} (targets judged here): top-1 "
-          f"{summary['top1_accuracy_visible_pct']:.1f} %, joint {summary['joint_accuracy_visible_pct']:.1f} %, "
-          f"shrink error {summary['mean_shrink_error_visible_pts']:.2f} points "
-          f"(max {summary['max_shrink_error_visible_pts']:.1f}); false alarms "
-          f"{summary['false_alarms']}/{summary['effect_free']} effect-free")
-    print(f"joint only (the first finding's joint is a true effect's joint, any effect), visible: "
-          f"{summary['joint_only_accuracy_visible_pct']:.1f} %")
-    if summary["findable"]:
-        print(f"findable {summary['findable']} (visible, and the true effect shrinks the validation run by "
-              f">= {VISIBLE_PCT:g} % too): top-1 {summary['top1_accuracy_findable_pct']:.1f} %, joint "
-              f"{summary['joint_accuracy_findable_pct']:.1f} %")
-    bands = summary["joint_accuracy_by_actual_shrink"]
-    print("joint accuracy by actual shrink: " + ", ".join(f"{k}: {ok}/{n}" for k, (ok, n) in bands.items()))
-    print(f"wrong findings (an effect or joint that is not true): on {summary['not_visible_with_wrong_findings']} "
-          f"of {summary['with_effect'] - summary['visible']} scenarios whose effect does not matter "
-          f"({summary['wrong_findings_not_visible']} findings), {summary['wrong_findings_visible']} extra "
-          f"on the visible ones")
-    print(f"shrink-error reference of a validation-based prediction (the true effects' own validation "
-          f"shrink vs the sealed run, visible): {summary['mean_shrink_error_oracle_visible_pts']:.2f} points")
+    _print_summary(summary)
     print(json.dumps(summary))
     return 0
 

@@ -258,3 +258,21 @@ def _without_friction(spec):
     p = np.array(spec.nominal_params, float)
     p[VISCOUS_OFFSET:] = 0.0        # viscous and Coulomb coefficients
     return p
+
+
+def test_candidates_built_after_a_diagnosis_never_get_another_candidates_features(spec):
+    """Features and fits are cached per candidate. A cache keyed by ``id()`` handed a new
+    candidate the columns of a freed one that had the same id (CPython reuses addresses): the
+    blind benchmark's true-effect fits after a diagnosis came out wrong on some scenarios."""
+    from urident.gap.candidates import current_offset, load_friction
+
+    ident = simulate(spec, sines(1), None, seed=11)
+    valid = simulate(spec, sines(2), None, seed=12)
+    res = diagnose([ident], [valid], spec, config=FAST)
+    for k in range(50):
+        c = current_offset(1) if k % 2 else load_friction(1)
+        assert np.array_equal(c.features(res.valid), c.build(res.valid)), k
+        fit = res.correction([c])
+        fresh = res.scorer.__class__(res.ident, res.valid, res.config.n_folds)
+        ref = fresh.evaluate([c.__class__(c.effect, c.joint, c.variant, c.mode, c.columns, c.build)])
+        assert np.allclose(fit.residual, ref.residual), k

@@ -80,7 +80,9 @@ class Candidate:
         return len(self.columns)
 
     def features(self, ctx: SetContext) -> np.ndarray:
-        key = ("features", id(self))
+        # keyed by the candidate itself (identity hash, eq=False), not id(self): the cache then
+        # keeps it alive, so a later candidate can never reuse a freed one's id and its features
+        key = ("features", self)
         if key not in ctx.cache:
             f = np.asarray(self.build(ctx), float)
             assert f.shape == (ctx.n, 6, self.k), (self.name, f.shape)

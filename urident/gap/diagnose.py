@@ -105,7 +105,7 @@ class Score:
 
     def row(self, spec=None) -> dict:
         c = self.candidate
-        coef = self.fit.coefficients()[id(c)]
+        coef = self.fit.coefficients()[c]
         return {"effect": c.effect, "joint": self.joint + 1, "variant": c.variant, "mode": c.mode,
                 "gain_nm2": self.gain, "gain_ci95_nm2": list(self.ci),
                 "rms_before_nm": float(self.rms_before[self.joint]),
@@ -420,7 +420,7 @@ def _score_all(scorer: Scorer, current: Fit, pool: list[Candidate], block: int,
         else:
             held_out = lo > 0
         s.significant = bool(held_out and s.shrink_pct >= config.min_shrink_pct
-                             and plausible(c, f.coefficients()[id(c)])
+                             and plausible(c, f.coefficients()[c])
                              and (c.mode != "cv" or material_cv(s.change[:, joint], sigma[joint],
                                                                 config.cv_min_noise_ratio)))
         out.append(s)
@@ -553,7 +553,7 @@ def _finding(best: Score, conf: list[Score], ctx: SetContext, spec) -> Finding:
     else:
         z = best.gain / max((hi - lo) / (2 * 1.96), 1e-300)
         confidence = "high" if (z > 4 and best.shrink_pct >= 10) else "medium"
-    coef = best.fit.coefficients()[id(c)]
+    coef = best.fit.coefficients()[c]
     joints = (j + 1,)
     if c.joint is None:
         share = _shares(best.change, ctx.tau)

@@ -48,16 +48,16 @@ class Fit:
     cv: list[Candidate]
     beta_cv: np.ndarray                  # fitted on all validation samples
     residual: np.ndarray                 # (N, 6)
-    g: dict = field(default_factory=dict, repr=False)   # id(candidate) → G (p, k)
+    g: dict = field(default_factory=dict, repr=False)   # candidate → G (p, k)
 
-    def coefficients(self) -> dict[int, np.ndarray]:
+    def coefficients(self) -> dict[Candidate, np.ndarray]:
         out, i = {}, 0
         for c in self.ident:
-            out[id(c)] = self.beta_ident[i:i + c.k]
+            out[c] = self.beta_ident[i:i + c.k]
             i += c.k
         i = 0
         for c in self.cv:
-            out[id(c)] = self.beta_cv[i:i + c.k]
+            out[c] = self.beta_cv[i:i + c.k]
             i += c.k
         return out
 
@@ -66,10 +66,10 @@ class Fit:
         out = np.zeros((ctx.n, 6))
         coef = self.coefficients()
         for c in self.ident:
-            f = c.features(ctx).reshape(-1, c.k) - ctx.w @ self.g[id(c)]
-            out += (f @ coef[id(c)]).reshape(-1, 6)
+            f = c.features(ctx).reshape(-1, c.k) - ctx.w @ self.g[c]
+            out += (f @ coef[c]).reshape(-1, 6)
         for c in self.cv:
-            out += (c.features(ctx).reshape(-1, c.k) @ coef[id(c)]).reshape(-1, 6)
+            out += (c.features(ctx).reshape(-1, c.k) @ coef[c]).reshape(-1, 6)
         return out
 
 
@@ -87,27 +87,27 @@ class Scorer:
         n = valid.n
         self.n_folds = int(max(2, min(n_folds, n // 20)))
         self.fold = np.minimum((np.arange(n) * self.n_folds) // n, self.n_folds - 1)
-        self._g: dict[int, np.ndarray] = {}
+        self._g: dict[Candidate, np.ndarray] = {}
 
     # ------------------------------------------------------------- identification mode
     def g(self, c: Candidate) -> np.ndarray:
-        if id(c) not in self._g:
+        if c not in self._g:
             f = c.features(self.ident)                          # (N, 6, k)
             rows = np.flatnonzero(np.any(f != 0, axis=(0, 2)))  # joints the columns touch
             q3 = self._q.reshape(-1, 6, self._q.shape[1])
             qtc = sum(q3[:, j, :].T @ f[:, j, :] for j in rows) if rows.size else \
                 np.zeros((self._q.shape[1], c.k))
-            self._g[id(c)] = np.linalg.solve(self._r, qtc) / self._scale[:, None]
-        return self._g[id(c)]
+            self._g[c] = np.linalg.solve(self._r, qtc) / self._scale[:, None]
+        return self._g[c]
 
     def f_ident(self, c: Candidate) -> np.ndarray:
-        key = ("f_ident", id(c))
+        key = ("f_ident", c)
         if key not in self.ident.cache:
             self.ident.cache[key] = c.features(self.ident).reshape(-1, c.k) - self.ident.w @ self.g(c)
         return self.ident.cache[key]
 
     def f_valid(self, c: Candidate) -> np.ndarray:
-        key = ("f_valid", id(c))
+        key = ("f_valid", c)
         if key not in self.valid.cache:
             self.valid.cache[key] = c.features(self.valid).reshape(-1, c.k) - self.valid.w @ self.g(c)
         return self.valid.cache[key]
@@ -144,4 +144,4 @@ class Scorer:
                 pred[~train] = feats[~train] @ beta_b
             beta_c = _lstsq(feats.reshape(-1, k), r.reshape(-1))
             r = r - pred
-        return Fit(ident, beta_i, cv, beta_c, r, {id(c): self.g(c) for c in ident})
+        return Fit(ident, beta_i, cv, beta_c, r, {c: self.g(c) for c in ident})
