@@ -276,3 +276,32 @@ def test_candidates_built_after_a_diagnosis_never_get_another_candidates_feature
         fresh = res.scorer.__class__(res.ident, res.valid, res.config.n_folds)
         ref = fresh.evaluate([c.__class__(c.effect, c.joint, c.variant, c.mode, c.columns, c.build)])
         assert np.allclose(fit.residual, ref.residual), k
+
+
+def test_a_payload_declared_to_the_controller_between_the_runs_is_seen_in_its_target_moment(spec):
+    """Both runs log the controller's model torque. A 2 kg payload added before the validation
+    run and declared to the controller changes that model; the same model in both runs does not."""
+    from dataclasses import replace
+
+    from urident.simcontroller.effects import payload_params
+
+    rigid = _without_friction(spec)
+    payload = "effects:\n  - name: payload_error\n    mass_kg: 2.0\n"
+
+    def with_target(rec, traj, params):
+        q, qd, qdd = traj.evaluate(rec.t)
+        return replace(rec, target_moment=joint_torques(spec, params, q, qd, qdd))
+
+    ident = with_target(simulate(spec, sines(7), None, seed=41), sines(7), rigid)
+    valid = simulate(spec, sines(8), payload, seed=42)
+    declared = rigid + payload_params(spec, 2.0, np.zeros(3))
+    res = diagnose([ident], [with_target(valid, sines(8), declared)], spec, config=FAST)
+    change = res.as_dict()["where"]["controller_model"]["change_between_runs"]
+    assert change["changed"] is True
+    assert "declared to the controller" in format_report(res)
+    assert res.findings and res.findings[0].effect == "payload_error"
+
+    same = diagnose([ident], [with_target(valid, sines(8), rigid)], spec, config=FAST)
+    change = same.as_dict()["where"]["controller_model"]["change_between_runs"]
+    assert change["changed"] is False
+    assert max(change["share_of_largest_target"]) < 0.01

@@ -85,6 +85,11 @@ def format_report(res, top: int = 12) -> str:
         lines.append(f"    identified rigid body - target      {fmt(ref['rigid_body_minus_target_rms_nm'])}")
         scale = " ".join("      -" if x is None else f"{x:7.3f}" for x in ref["measured_over_target_scale"])
         lines.append(f"    measured / target (LS scale)        {scale}")
+        ch = ref.get("change_between_runs")
+        if ch:
+            verdict = ("changed between the runs: a payload or tool declared to the controller"
+                       if ch["changed"] else "unchanged between the runs (no payload declared in between)")
+            lines.append(f"    controller model, ident -> valid    {fmt(ch['rms_nm'])}  {verdict}")
     lines.append("")
     lines.append("Which (first step: each candidate added alone; held-out gain, 95 % interval):")
     lines.append("  effect                 joint  mode   variant                    gain [Nm^2]"
