@@ -39,8 +39,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--effects", metavar="NAMES", default=None,
                    help="comma-separated subset of the catalogue to test (default: all; names as in "
                         "'urident simulate --list-effects')")
-    p.add_argument("--min-shrink", dest="min_shrink_pct", type=float, default=3.0, metavar="PCT",
-                   help="a finding must shrink its joint's validation RMS by at least this (default 3)")
+    p.add_argument("--min-shrink", dest="min_shrink_pct", type=float, default=None, metavar="PCT",
+                   help="a finding must shrink its joint's validation RMS by at least this "
+                        "(default: GapConfig's, 2; calibrated on effect-free runs)")
     p.add_argument("--cv-min-noise", dest="cv_min_noise_ratio", type=float, default=0.5,
                    metavar="RATIO",
                    help="a finding fitted inside the validation logs (CV mode) must correct its "
@@ -83,8 +84,8 @@ def run(args: argparse.Namespace) -> int:
     effects = EFFECTS
     if args.effects:
         effects = tuple(e.strip() for e in args.effects.split(",") if e.strip())
-    config = GapConfig(effects=effects, min_shrink_pct=args.min_shrink_pct,
-                       cv_min_noise_ratio=args.cv_min_noise_ratio,
+    floor = {} if args.min_shrink_pct is None else {"min_shrink_pct": args.min_shrink_pct}
+    config = GapConfig(effects=effects, **floor, cv_min_noise_ratio=args.cv_min_noise_ratio,
                        max_effects=args.max_effects, seed=args.seed)
     spec = load_robot(args.robot)
     params = None
