@@ -62,10 +62,9 @@ Wrong findings are counted too: a finding whose (effect, joint) is not a true on
 whose effect does not matter (the right answer there is "nothing found") and on visible ones.
 
 Materiality (part of the diagnosis, not of the scoring): besides a held-out gain whose interval
-lies above 0 and a shrink of >= ``GapConfig.min_shrink_pct`` (2 %) of the joint's validation RMS
-(calibrated on effect-free scans: :data:`urident.gap.diagnose.MIN_SHRINK_CALIBRATION`; it is below
-the 3 % visibility threshold because the validation and sealed runs excite an effect differently),
-a finding fitted inside the validation logs
+lies above 0 and a shrink of >= ``GapConfig.min_shrink_pct`` (3 %) of the joint's validation RMS
+(:data:`urident.gap.diagnose.MIN_SHRINK_CALIBRATION`: effect-free scans, and why not 2 %), a
+finding fitted inside the validation logs
 (CV mode: "the effect differs between the runs") must correct its joint by an RMS of at least
 ``GapConfig.cv_min_noise_ratio`` (0.5) times the joint's white-noise torque, estimated by the
 diagnosis from the differences of its own validation residual (:func:`urident.gap.diagnose.material_cv`).

@@ -49,14 +49,17 @@ _PREFER_AXIS = {"stribeck": ("velocity",), "load_friction": ("load",), "thermal_
                 "current_delay": (), "joint_elasticity": ()}
 
 
-#: How the materiality floor ``GapConfig.min_shrink_pct`` (2 %) was set, on effect-free data only:
+#: How the materiality floor ``GapConfig.min_shrink_pct`` (3 %) is supported, on effect-free data:
 #: with no floor, the held-out test alone passed findings on 73 of 80 effect-free 60 s scenarios
-#: (``benchmarks/gap_blind.py --effect-free --min-shrink 0``, seeds 101 and 102), every one
-#: shrinking its joint by at most 1.3 % (most by < 0.5 %: real but immaterial structure of the
-#: baseline's misfit). The floor is 1.5 x that largest value, rounded: 2 %. It was 3 %, the same
-#: as the blind benchmark's visibility threshold on the *sealed* run, which lost effects that
-#: matter there (4 %) but showed only 2 % on the validation run the diagnosis sees.
-MIN_SHRINK_CALIBRATION = "1.5 x the largest effect-free shrink (1.3 %) over 80 scenarios"
+#: (``benchmarks/gap_blind.py --effect-free --min-shrink 0``, seeds 101 and 102), each shrinking
+#: its joint by at most 1.3 % (most by < 0.5 %: real but immaterial structure of the baseline's
+#: misfit); 3 % is 2.3 x that. A 2 % floor was tried (``--min-shrink 2``, seeds 1, 2, 10, 11): it
+#: found effects at 2-3 % on the validation run, but where an effect was present it also named
+#: the misfit that effect leaves on *other* joints (an effect-free scan cannot show that): a
+#: 2.8 % "joint_elasticity" on joint 2 ahead of the true warm-up on joint 6 (seed 2, scenario 1),
+#: and a 2.2 % ripple added on top of a true warm-up that the backward step then dropped (seed 11,
+#: scenario 14). So the floor stays at 3 %.
+MIN_SHRINK_CALIBRATION = "3 %: 2.3 x the largest effect-free shrink (1.3 %) over 80 scenarios"
 
 
 @dataclass(frozen=True)
@@ -65,8 +68,8 @@ class GapConfig:
     n_folds: int = 5                 # CV blocks inside the validation logs
     n_boot: int = 1000               # bootstrap resamples
     level: float = 0.95              # interval level
-    min_shrink_pct: float = 2.0      # a finding must shrink its joint's RMS by at least this
-                                     # (calibration: MIN_SHRINK_CALIBRATION below)
+    min_shrink_pct: float = 3.0      # a finding must shrink its joint's RMS by at least this
+                                     # (calibration: MIN_SHRINK_CALIBRATION above)
     cv_min_noise_ratio: float = 0.5  # a CV-mode finding's correction RMS on its joint must be at
                                      # least this multiple of the joint's white-noise torque
     max_effects: int = 3
