@@ -21,6 +21,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from urident.model import load_robot
     from urident.model.base import base_parameters
+    from urident.model.parameters import N_PARAMS
 
     spec = load_robot(args.robot)
     base = base_parameters(spec, reduced=args.reduced)
@@ -29,14 +30,14 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps({
             "robot": spec.name,
             "reduced": bool(args.reduced),
-            "n_params": 78,
+            "n_params": N_PARAMS,
             "n_modelled": int(len(base.modelled)),
             "n_base": base.n_base,
             "base_parameters": [{"name": n, "expression": e} for n, e in zip(base.names, expressions)],
         }, indent=2))
         return 0
     print(f"{spec.description}: {spec.controller_rate_hz:g} Hz controller")
-    print(f"standard parameters: 78 ({len(base.modelled)} modelled"
+    print(f"standard parameters: {N_PARAMS} ({len(base.modelled)} modelled"
           f"{', paper reduced model' if args.reduced else ''}); base parameters: {base.n_base}")
     width = max(len(n) for n in base.names)
     for k, (name, expr) in enumerate(zip(base.names, expressions), start=1):

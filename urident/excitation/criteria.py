@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from urident.model.base import BaseParameters, random_states
+from urident.model.parameters import N_PARAMS
 from urident.model.regressor import DEFAULT_FRICTION_EPS, regressor_blocks
 from urident.model.robot import RobotSpec
 
@@ -47,7 +48,7 @@ class CriterionValues:
 def base_regressor(spec: RobotSpec, base: BaseParameters, q: np.ndarray, qd: np.ndarray,
                    qdd: np.ndarray, friction_eps: float = DEFAULT_FRICTION_EPS) -> np.ndarray:
     """Θ̄_B (6N, b) for (N, 6) samples."""
-    return base.columns(regressor_blocks(spec, q, qd, qdd, friction_eps).reshape(-1, 78))
+    return base.columns(regressor_blocks(spec, q, qd, qdd, friction_eps).reshape(-1, N_PARAMS))
 
 
 _SCALE_CACHE: dict[tuple, np.ndarray] = {}

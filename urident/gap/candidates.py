@@ -37,6 +37,7 @@ from typing import Callable
 import numpy as np
 
 from urident.gap.residual import SetContext
+from urident.ident import features
 from urident.simcontroller.effects.catalogue import EFFECT_NAMES
 
 #: The catalogue's names, in its order (the catalogue's own tuple, not a copy).
@@ -144,15 +145,14 @@ def _segment_first(ctx: SetContext, x: np.ndarray) -> np.ndarray:
 
 def stribeck(j: int, vs: float, mode: str = "ident") -> Candidate:
     def build(ctx):
-        qd = ctx.qd[:, j]
-        return _on_joint(ctx, j, [np.exp(-(qd / vs) ** 2) * np.tanh(qd / ctx.friction_eps)])
+        return _on_joint(ctx, j, [features.stribeck(ctx.qd[:, j], ctx.friction_eps, vs)])
     return Candidate("stribeck", j, f"v_s={vs:g} rad/s", mode, ("exp(-(qd/vs)^2)*sign(qd)",), build,
                      {"vs": vs})
 
 
 def load_friction(j: int, mode: str = "ident") -> Candidate:
     def build(ctx):
-        return _on_joint(ctx, j, [np.abs(ctx.tau_link[:, j]) * ctx.sign()[:, j]])
+        return _on_joint(ctx, j, [features.load_friction(ctx.tau_link[:, j], ctx.sign()[:, j])])
     return Candidate("load_friction", j, "", mode, ("|tau_link|*sign(qd)",), build)
 
 
@@ -211,15 +211,10 @@ def joint_elasticity(j: int, mode: str = "ident") -> Candidate:
 
 def payload_error(spec, mode: str = "cv") -> Candidate:
     from urident.model import regressor_blocks
-    from urident.model.parameters import body_params
-
-    tool = np.asarray(spec.tool_xyz, float)
-    unit_mass = body_params(1.0, tool, np.zeros((3, 3)))
 
     def build(ctx):
-        y6 = regressor_blocks(spec, ctx.q, ctx.qd, ctx.qdd, ctx.friction_eps)[:, :, 50:60]
-        point = y6 @ unit_mass
-        return np.concatenate([point[:, :, None], y6[:, :, 1:4]], axis=2)
+        blocks = regressor_blocks(spec, ctx.q, ctx.qd, ctx.qdd, ctx.friction_eps)
+        return features.payload_columns(blocks, spec.tool_xyz)
     return Candidate("payload_error", None, "point mass at the tool", mode,
                      ("tool point mass", "m*rho_x6", "m*rho_y6", "m*rho_z6"), build)
 

@@ -19,7 +19,6 @@ from urident.gap.data import GapSet
 
 #: Corner of the zero-phase low-pass applied before differentiating τ̂ [Hz].
 DERIVATIVE_FILTER_HZ = 15.0
-_FRICTION_PREFIXES = ("fv", "fc", "fo", "fs", "fh")
 
 
 def fit_baseline(spec, ident: GapSet, friction_eps: float = 0.01):
@@ -104,13 +103,14 @@ def make_context(spec, model, data: GapSet) -> SetContext:
     """Design matrix and derived signals of ``data`` under the identified ``model``."""
     from urident.ident.design import design_matrix
     from urident.ident.identify import check_compatible
+    from urident.model.parameters import is_friction
 
     check_compatible(model, spec)
     p = data.prepared
     w = design_matrix(spec, model.model, p.q, p.qd, p.qdd, p.segment)
     values = np.asarray(model.values, float)
     tau_hat = (w @ values).reshape(-1, 6)
-    rigid = np.array([not n.startswith(_FRICTION_PREFIXES) for n in model.names])
+    rigid = ~is_friction(model.kinds)      # the link side: rigid body and rotor inertia
     tau_link = (w[:, rigid] @ values[rigid]).reshape(-1, 6)
     dtau = smooth_derivative(tau_hat, p.t, p.segment, 1)
     ddtau = smooth_derivative(tau_link, p.t, p.segment, 2)

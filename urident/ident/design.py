@@ -3,7 +3,8 @@
 ``ModelConfig`` fixes everything the regressor depends on (the paper's reduced or full base set, the
 tanh slope ε, the Coulomb model and extra friction features). ``design_matrix`` returns the stacked
 (6N, n) matrix, row 6k + j, whose first ``b`` columns are the base-parameter columns Θ_B of the
-paper and the rest the extra friction columns of :mod:`urident.ident.friction`.
+paper and the rest the extra friction columns (:mod:`urident.ident.features`, the friction states
+of :mod:`urident.ident.friction`). Column names and kinds follow :mod:`urident.model.parameters`.
 """
 
 from __future__ import annotations
@@ -14,12 +15,12 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from urident.errors import ConfigError, shown
-from urident.ident.friction import (COULOMB_MODELS, DAHL_SOURCES, EXTRA_FEATURES, EXTRA_PREFIX,
-                                    NONNEGATIVE_EXTRAS, dahl_state, hold_state, sqrt_viscous, stribeck,
-                                    velocity_displacement)
-from urident.model.parameters import COULOMB_OFFSET, parameter_names
+from urident.ident import features
+from urident.ident.friction import COULOMB_MODELS, DAHL_SOURCES, dahl_state, hold_state, velocity_displacement
+from urident.model.parameters import (COULOMB_OFFSET, EXTRA_COLUMNS, extra_column_names,
+                                      nonnegative_parameters, parameter_kinds)
 
-_NONNEG_STANDARD_PREFIX = ("m", "A", "B", "C", "IM", "fv", "fc")
+EXTRA_FEATURES = tuple(EXTRA_COLUMNS)
 
 
 @dataclass(frozen=True)
@@ -85,8 +86,19 @@ def column_names(spec, config: ModelConfig) -> list[str]:
     base = base_for(spec, config.reduced)
     names = list(base.names)
     for x in config.extras:
-        names += [f"{EXTRA_PREFIX[x]}{j + 1}" for j in range(6)]
+        names += extra_column_names(x)
     return names
+
+
+def column_kinds(spec, config: ModelConfig) -> list[str]:
+    """Kind of each column (:mod:`urident.model.parameters`): a base parameter has the kind of the
+    standard parameter it is named after, an extra column its feature's kind."""
+    base = base_for(spec, config.reduced)
+    kinds = parameter_kinds()
+    out = [kinds[k] for k in base.independent]
+    for x in config.extras:
+        out += [EXTRA_COLUMNS[x][1]] * 6
+    return out
 
 
 def column_expressions(spec, config: ModelConfig) -> list[str]:
@@ -106,14 +118,13 @@ def nonnegative_mask(spec, config: ModelConfig) -> np.ndarray:
     combination of masses, diagonal inertias about the joint frame (A, B, C), rotor inertias and
     friction coefficients only; and the Stribeck and Dahl extras."""
     base = base_for(spec, config.reduced)
-    names = parameter_names()
-    nonneg_std = np.array([n.startswith(_NONNEG_STANDARD_PREFIX) and not n.startswith("mr") for n in names])
+    nonneg_std = nonnegative_parameters()
     mask = []
     for row in base.combination:
         nz = np.flatnonzero(np.abs(row) > 1e-12)
         mask.append(bool(np.all(nonneg_std[nz]) and np.all(row[nz] > 0)))
     for x in config.extras:
-        mask += [x in NONNEGATIVE_EXTRAS] * 6
+        mask += [x in features.NONNEGATIVE_EXTRAS] * 6
     return np.array(mask)
 
 
@@ -126,7 +137,7 @@ def _dahl(config: ModelConfig, q, qd, t, segment) -> np.ndarray:
 def nominal_link_torque(spec, blocks: np.ndarray) -> np.ndarray:
     """(N, 6) link-side rigid-body torque of the robot file's nominal parameters, from the (N, 6, 78)
     regressor (the ten parameters of the six bodies only: no rotor inertia, no friction)."""
-    return blocks[:, :, :60] @ np.asarray(spec.nominal_params, dtype=float)[:60]
+    return features.link_torque(blocks, spec.nominal_params)
 
 
 def design_blocks(spec, config: ModelConfig, q, qd, qdd, segment=None, t=None) -> np.ndarray:
@@ -147,13 +158,14 @@ def design_blocks(spec, config: ModelConfig, q, qd, qdd, segment=None, t=None) -
     for x in config.extras:
         extra = np.zeros((n, 6, 6))
         if x == "offset":
-            values = np.ones((n, 6))
+            values = features.offset((n, 6))
         elif x == "stribeck":
-            values = stribeck(qd, config.friction_eps, config.stribeck_vs)
+            values = features.stribeck(qd, config.friction_eps, config.stribeck_vs)
         elif x == "load":
-            values = np.abs(nominal_link_torque(spec, blocks)) * blocks[:, joints, COULOMB_OFFSET + joints]
+            values = features.load_friction(nominal_link_torque(spec, blocks),
+                                            blocks[:, joints, COULOMB_OFFSET + joints])
         elif x == "sqrtvisc":
-            values = sqrt_viscous(qd)
+            values = features.sqrt_viscous(qd)
         else:
             values = _dahl(config, q, qd, t, segment)
         extra[:, joints, joints] = values

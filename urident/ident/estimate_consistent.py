@@ -23,7 +23,7 @@ import numpy as np
 from urident.errors import UridentError
 from urident.ident.estimate import Estimate, row_weights, statistics
 from urident.ident.estimate_ols import check_inputs, reduce_ls, resolve_weights, solve_ls
-from urident.model.parameters import COULOMB_OFFSET, ROTOR_OFFSET, VISCOUS_OFFSET
+from urident.model.parameters import COULOMB, DRIVE, FRICTION, N_JOINTS, N_PARAMS, ROTOR, VISCOUS, body_slice
 
 DEFAULT_REGULARISATION = 1e-3
 _FLOORS = {"m": 0.1, "h": 0.01, "I": 1e-3, "IM": 1e-2, "f": 0.1}
@@ -34,14 +34,14 @@ class ConsistentSolveError(UridentError):
 
 
 def parameter_scales(nominal: np.ndarray) -> np.ndarray:
-    s = np.zeros(78)
-    for i in range(6):
-        k = 10 * i
+    s = np.zeros(N_PARAMS)
+    for i in range(N_JOINTS):
+        k = body_slice(i).start
         s[k] = max(abs(nominal[k]), _FLOORS["m"])
         s[k + 1:k + 4] = np.maximum(np.abs(nominal[k + 1:k + 4]), _FLOORS["h"])
         s[k + 4:k + 10] = np.maximum(np.abs(nominal[k + 4:k + 10]), _FLOORS["I"])
-    s[60:66] = np.maximum(np.abs(nominal[60:66]), _FLOORS["IM"])
-    s[66:78] = np.maximum(np.abs(nominal[66:78]), _FLOORS["f"])
+    s[ROTOR] = np.maximum(np.abs(nominal[ROTOR]), _FLOORS["IM"])
+    s[FRICTION] = np.maximum(np.abs(nominal[FRICTION]), _FLOORS["f"])
     return s
 
 
@@ -68,7 +68,7 @@ def estimate_consistent(w: np.ndarray, y: np.ndarray, names, combination: np.nda
 
     nominal = np.asarray(nominal, dtype=float)
     s = parameter_scales(nominal)
-    p = cp.Variable(78)
+    p = cp.Variable(N_PARAMS)
     xe = cp.Variable(nx) if nx else None
     theta = combination @ p
     full = cp.hstack([theta, xe]) if nx else theta
@@ -78,16 +78,15 @@ def estimate_consistent(w: np.ndarray, y: np.ndarray, names, combination: np.nda
     if nx:
         objective += regularisation * cp.sum_squares(xe)
     cons = []
-    for i in range(6):
-        k = 10 * i
+    for i in range(N_JOINTS):
+        k = body_slice(i).start
         m, hx, hy, hz, a_, b_, c_, d_, e_, f_ = (p[k + j] for j in range(10))
         jm = cp.Variable((4, 4), PSD=True)
         cons += [jm[0, 0] == (-a_ + b_ + c_) / 2, jm[1, 1] == (a_ - b_ + c_) / 2,
                  jm[2, 2] == (a_ + b_ - c_) / 2, jm[0, 1] == f_, jm[0, 2] == e_, jm[1, 2] == d_,
                  jm[0, 3] == hx, jm[1, 3] == hy, jm[2, 3] == hz, jm[3, 3] == m,
                  m >= 0.01 * max(nominal[k], _FLOORS["m"])]
-    cons += [p[ROTOR_OFFSET:ROTOR_OFFSET + 6] >= 0, p[VISCOUS_OFFSET:VISCOUS_OFFSET + 6] >= 0,
-             p[COULOMB_OFFSET:COULOMB_OFFSET + 6] >= 0]
+    cons += [p[ROTOR] >= 0, p[VISCOUS] >= 0, p[COULOMB] >= 0]
     if nx and np.any(extra_nonnegative):
         cons.append(xe[np.flatnonzero(extra_nonnegative)] >= 0)
     problem = cp.Problem(cp.Minimize(objective), cons)
@@ -118,12 +117,13 @@ def pseudo_inertia(p10: np.ndarray) -> np.ndarray:
 
 
 def _pseudo_min_eig(p: np.ndarray) -> list[float]:
-    return [float(np.linalg.eigvalsh(pseudo_inertia(p[10 * i:10 * i + 10])).min()) for i in range(6)]
+    return [float(np.linalg.eigvalsh(pseudo_inertia(p[body_slice(i)])).min()) for i in range(N_JOINTS)]
 
 
 def is_physically_consistent(p: np.ndarray, tol: float = 1e-9) -> bool:
     """Every body's pseudo-inertia ⪰ 0 with positive mass, rotor inertia and friction ≥ 0."""
     p = np.asarray(p, dtype=float)
-    ok = all(e >= -tol * max(1.0, abs(p[10 * i])) for i, e in enumerate(_pseudo_min_eig(p)))
-    ok &= all(p[10 * i] > 0 for i in range(6))
-    return bool(ok and np.all(p[60:78] >= -tol))
+    masses = p[[body_slice(i).start for i in range(N_JOINTS)]]
+    ok = all(e >= -tol * max(1.0, abs(m)) for m, e in zip(masses, _pseudo_min_eig(p)))
+    ok &= all(m > 0 for m in masses)
+    return bool(ok and np.all(p[DRIVE] >= -tol))

@@ -1,7 +1,6 @@
-"""Friction features beyond the paper's r_v·q̇ + r_c·tanh(q̇/ε).
+"""Coulomb friction states beyond the paper's tanh(q̇/ε).
 
-All are linear in their coefficients, so they enter the regressor as extra columns (or replace the
-Coulomb column), one per joint:
+Each replaces the Coulomb column (or, as the ``dahl`` extra feature, adds one), one per joint:
 
 * ``tanh`` (paper): sign(q̇) ≈ tanh(q̇/ε).
 * ``dahl``: a presliding/hysteresis state z ∈ [−1, 1] driven by the joint's motion history,
@@ -17,24 +16,16 @@ Coulomb column), one per joint:
   decelerates to a stop it keeps the full friction of the last motion direction (the holding
   current of a harmonic drive stopped after sliding, presliding memory as in Dahl/LuGre) instead
   of dropping to tanh(≈0) = 0. v_h is a few times the standstill velocity noise.
-* ``offset``: a constant per joint (asymmetric Coulomb friction, current-sensor bias, unmodelled
-  static load); name ``fo<j>``.
-* ``stribeck``: tanh(q̇/ε)·exp(−(q̇/v_s)²), the extra static friction near zero speed; ``fs<j>``.
-* ``load``: |τ_L,j|·z_j, load-dependent Coulomb friction of a harmonic drive (the tooth and bearing
-  forces, hence the friction, grow with the transmitted torque). τ_L is the link-side rigid-body
-  torque of the robot file's nominal parameters at (q, q̇, q̈) (rotor inertia and friction
-  excluded), z_j the model's Coulomb state (tanh, dahl or hold); name ``fcl<j>``, coefficient ≥ 0.
-* ``sqrtvisc``: sign(q̇)·sqrt(|q̇|), a concave (sub-linear) viscous term, as the lubricant film of a
-  harmonic drive gives; name ``fvs<j>``, coefficient ≥ 0.
+
+The extra columns that are not a friction state (offset, Stribeck, load friction, sub-linear
+viscous) are in :mod:`urident.ident.features`, shared with the gap diagnosis; the column names and
+kinds of every extra feature are in :data:`urident.model.parameters.EXTRA_COLUMNS`.
 
 Displacement for the Dahl state (``dahl_source``). ``position``: the differences of the logged q.
 ``velocity``: the displacement integrated from the logged q̇ (trapezoid rule on the timestamps),
 which does not depend on how finely the log stores positions (Dahl distances are ~1e-4 rad, and
 some logs store q with 4 decimals, i.e. 1e-4 rad steps, while q̇ keeps its full resolution). Without
 timestamps (``t=None``) the position differences are used.
-
-Names of the extra columns start with ``fo``, ``fs``, ``fh``, ``fcl`` and ``fvs`` so that code
-classifying friction columns by the ``fc``/``fv`` prefixes keeps working.
 """
 
 from __future__ import annotations
@@ -42,9 +33,6 @@ from __future__ import annotations
 import numpy as np
 
 COULOMB_MODELS = ("tanh", "dahl", "hold")
-EXTRA_FEATURES = ("offset", "stribeck", "dahl", "load", "sqrtvisc")
-EXTRA_PREFIX = {"offset": "fo", "stribeck": "fs", "dahl": "fh", "load": "fcl", "sqrtvisc": "fvs"}
-NONNEGATIVE_EXTRAS = frozenset({"stribeck", "dahl", "load", "sqrtvisc"})
 DAHL_SOURCES = ("position", "velocity")
 
 
@@ -61,11 +49,6 @@ def velocity_displacement(t: np.ndarray, qd: np.ndarray, segment: np.ndarray | N
         first = np.repeat(starts, np.diff(np.r_[starts, len(seg)]))
         x = x - x[first]
     return x
-
-
-def sqrt_viscous(qd: np.ndarray) -> np.ndarray:
-    qd = np.asarray(qd, dtype=float)
-    return np.sign(qd) * np.sqrt(np.abs(qd))
 
 
 def dahl_state(q: np.ndarray, delta: float, segment: np.ndarray | None = None) -> np.ndarray:
@@ -85,11 +68,6 @@ def dahl_state(q: np.ndarray, delta: float, segment: np.ndarray | None = None) -
             cur = s[k - 1] + (cur - s[k - 1]) * decay[k - 1]
         z[k] = cur
     return z
-
-
-def stribeck(qd: np.ndarray, eps: float, vs: float) -> np.ndarray:
-    qd = np.asarray(qd, dtype=float)
-    return np.tanh(qd / eps) * np.exp(-(qd / vs) ** 2)
 
 
 def hold_state(qd: np.ndarray, eps: float, v_hold: float, segment: np.ndarray | None = None) -> np.ndarray:

@@ -14,8 +14,8 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from urident.errors import ConfigError
-from urident.ident.design import (ModelConfig, base_for, column_expressions, column_names, design_matrix,
-                                  nonnegative_mask)
+from urident.ident.design import (ModelConfig, base_for, column_expressions, column_kinds, column_names,
+                                  design_matrix, nonnegative_mask)
 from urident.ident.estimate import Estimate
 from urident.ident.estimate_bounded import estimate_bounded
 from urident.ident.estimate_consistent import DEFAULT_REGULARISATION, estimate_consistent
@@ -46,6 +46,15 @@ class IdentifiedModel:
     train_rms: np.ndarray | None = None
     train_e_n: float = float("nan")
     info: dict | None = None
+    kinds: tuple[str, ...] = ()   # kind of each column (urident.model.parameters); from the names if empty
+
+    def __post_init__(self) -> None:
+        from urident.model.parameters import column_kind
+
+        if not self.kinds:   # e.g. read from a parameters file: the names say (check_compatible checks them)
+            object.__setattr__(self, "kinds", tuple(column_kind(n, "unknown") for n in self.names))
+        if len(self.kinds) != len(self.names):
+            raise ValueError(f"{len(self.kinds)} column kinds for {len(self.names)} columns")
 
     @property
     def relative_sigma_pct(self) -> np.ndarray:
@@ -73,7 +82,7 @@ def _wrap(spec, est: Estimate, model: ModelConfig, data: Prepared, weighting: st
         drive_gains=np.asarray(data.drive_gains, float), preprocess=config or PreprocessConfig(),
         weighting=weighting, standard=est.standard, provenance=data.provenance,
         n_samples=len(data), noise_var=est.noise_var, train_rms=est.train_rms,
-        train_e_n=est.train_e_n, info=est.info)
+        train_e_n=est.train_e_n, info=est.info, kinds=tuple(column_kinds(spec, model)))
 
 
 def identify_all(spec, data: Prepared | Sequence[Prepared], methods: Sequence[str] = METHODS,
@@ -119,6 +128,8 @@ def check_compatible(identified: IdentifiedModel, spec, where: str = "parameters
     if names != tuple(identified.names):
         raise ConfigError(f"{where}: parameter names do not match the {spec.name} model "
                           f"({'reduced' if identified.model.reduced else 'full'} base set)")
+    if tuple(identified.kinds) != tuple(column_kinds(spec, identified.model)):
+        raise ConfigError(f"{where}: column kinds do not match the {spec.name} model")
 
 
 def predict(identified: IdentifiedModel, spec, q, qd, qdd, segment=None, t=None) -> np.ndarray:

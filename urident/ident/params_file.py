@@ -28,7 +28,7 @@ from urident.errors import ConfigError, shown
 from urident.ident.design import ModelConfig
 from urident.ident.identify import METHODS, IdentifiedModel
 from urident.ident.preprocess import PreprocessConfig, Provenance
-from urident.model.parameters import parameter_names
+from urident.model.parameters import N_PARAMS, parameter_names
 
 FORMAT = "urident-params"
 VERSION = 1
@@ -152,8 +152,8 @@ def load_params(path: str | Path) -> IdentifiedModel:
     standard = None
     if data.get("standard_parameters") is not None:
         std = data["standard_parameters"]
-        if not isinstance(std, list) or len(std) != 78:
-            raise _err(path, "key 'standard_parameters' must list 78 parameters")
+        if not isinstance(std, list) or len(std) != N_PARAMS:
+            raise _err(path, f"key 'standard_parameters' must list {N_PARAMS} parameters")
         try:
             standard = np.array([float(it["value"]) for it in std])
         except (TypeError, ValueError, KeyError):

@@ -73,10 +73,10 @@ def payload_params(mass: float, com: Sequence[float], inertia_com: np.ndarray | 
 
 def payload_torque(spec, q, qd, qdd, payload: np.ndarray) -> np.ndarray:
     """(N, 6) torque of a payload (ten parameters about K_6) on the joints."""
+    from urident.ident import features
     from urident.model import regressor_blocks
 
-    blocks = regressor_blocks(spec, q, qd, qdd)
-    return blocks[:, :, 50:60] @ np.asarray(payload, dtype=float)
+    return features.payload_torque(regressor_blocks(spec, q, qd, qdd), payload)
 
 
 def estimate_drive_gains(spec, run_without, run_with, payload: np.ndarray,

@@ -16,7 +16,7 @@ from xml.sax.saxutils import escape
 import numpy as np
 
 from urident.errors import ConfigError
-from urident.model.parameters import inertia_tensor
+from urident.model.parameters import COULOMB, N_PARAMS, ROTOR, VISCOUS, body_slice, inertia_tensor
 
 
 def _rpy(rotation: np.ndarray) -> np.ndarray:
@@ -44,19 +44,19 @@ def to_urdf(spec, standard: np.ndarray, name: str | None = None) -> str:
     from urident.ident.estimate_consistent import is_physically_consistent
 
     p = np.asarray(standard, dtype=float)
-    if p.shape != (78,):
-        raise ConfigError(f"URDF export needs the 78 standard parameters, got shape {p.shape}")
+    if p.shape != (N_PARAMS,):
+        raise ConfigError(f"URDF export needs the {N_PARAMS} standard parameters, got shape {p.shape}")
     if not is_physically_consistent(p, tol=1e-7):
         raise ConfigError("URDF export needs physically consistent parameters (use --method consistent)")
     name = name or f"{spec.name}_identified"
     axes = {"x": "1 0 0", "y": "0 1 0", "z": "0 0 1"}
     out = ['<?xml version="1.0"?>', f'<robot name="{escape(name)}">',
            "  <!-- identified by urident; rotor inertias i_G^2*C_M [kg m^2] (not part of URDF): "
-           + _fmt(p[60:66]) + " -->",
+           + _fmt(p[ROTOR]) + " -->",
            '  <link name="base_link"/>']
     parent = "base_link"
     for i, joint in enumerate(spec.joints):
-        m, com, ic = link_inertial(p[10 * i:10 * i + 10])
+        m, com, ic = link_inertial(p[body_slice(i)])
         link = f"{joint.name}_link"
         out += [f'  <link name="{link}">', "    <inertial>",
                 f'      <origin xyz="{_fmt(com)}" rpy="0 0 0"/>', f'      <mass value="{m:.12g}"/>',
@@ -69,7 +69,7 @@ def to_urdf(spec, standard: np.ndarray, name: str | None = None) -> str:
                 f'    <axis xyz="{axes[joint.axis]}"/>',
                 f'    <limit lower="{joint.q_min:.12g}" upper="{joint.q_max:.12g}" '
                 f'effort="{joint.tau_max:.12g}" velocity="{joint.qd_max:.12g}"/>',
-                f'    <dynamics damping="{p[66 + i]:.12g}" friction="{p[72 + i]:.12g}"/>',
+                f'    <dynamics damping="{p[VISCOUS][i]:.12g}" friction="{p[COULOMB][i]:.12g}"/>',
                 "  </joint>"]
         parent = link
     out += ['  <link name="tool0"/>', '  <joint name="tool0_fixed" type="fixed">',

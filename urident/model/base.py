@@ -15,9 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from urident.model.parameters import BODY_FIELDS, parameter_names
+from urident.model.parameters import BODY_FIELDS, DRIVE, N_PARAMS, body_slice, parameter_names
 from urident.model.regressor import regressor
-from urident.model.robot import N_PARAMS, RobotSpec
+from urident.model.robot import RobotSpec
 
 # The paper's reduced model (section IV-B): no products of inertia; body 1 only C1; each centre of
 # mass on one axis of its joint frame (K2z, K3z, K4y, K5z, K6y).
@@ -76,10 +76,10 @@ def modelled_parameters(reduced: bool) -> np.ndarray:
         return np.arange(N_PARAMS)
     keep = [BODY_FIELDS.index("C")]  # body 1: only the axial inertia C1
     for body, axis in PAPER_COM_AXES.items():
-        base = 10 * (body - 1)
+        first = body_slice(body - 1).start
         for name in ("m", f"mr{axis}", "A", "B", "C"):
-            keep.append(base + BODY_FIELDS.index(name))
-    keep += list(range(60, 78))
+            keep.append(first + BODY_FIELDS.index(name))
+    keep += list(range(DRIVE.start, DRIVE.stop))
     return np.array(sorted(keep))
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from urident.model.parameters import pinocchio_dynamic_parameters
+from urident.model.parameters import COULOMB, ROTOR, VISCOUS, body_slice, check_standard, pinocchio_dynamic_parameters
 from urident.model.regressor import DEFAULT_FRICTION_EPS
 from urident.model.robot import Capsule, RobotSpec
 
@@ -26,7 +26,7 @@ def build_model(spec: RobotSpec, params: np.ndarray | None = None) -> pin.Model:
         jid = model.addJoint(parent, _JOINT_TYPES[joint.axis](), placement, joint.name,
                              np.array([joint.tau_max]), np.array([joint.qd_max]),
                              np.array([joint.q_min]), np.array([joint.q_max]))
-        inertia = pin.Inertia.FromDynamicParameters(pinocchio_dynamic_parameters(p[10 * i:10 * i + 10]))
+        inertia = pin.Inertia.FromDynamicParameters(pinocchio_dynamic_parameters(p[body_slice(i)]))
         model.appendBodyToJoint(jid, inertia, pin.SE3.Identity())
         parent = jid
     model.addFrame(pin.Frame("tool", parent, pin.SE3(np.array(spec.tool_rotation), np.array(spec.tool_xyz)),
@@ -104,14 +104,13 @@ class TorqueModel:
                  friction_eps: float = DEFAULT_FRICTION_EPS):
         self.spec = spec
         self.params = spec.nominal_params if params is None else np.asarray(params, dtype=float).copy()
-        if self.params.shape != (78,):
-            raise ValueError(f"params must be a 78-vector, got shape {self.params.shape}")
+        check_standard(self.params)
         self.friction_eps = float(friction_eps)
         self.model = build_model(spec, self.params)
         self.data = self.model.createData()
-        self.rotor = self.params[60:66].copy()
-        self.viscous = self.params[66:72].copy()
-        self.coulomb = self.params[72:78].copy()
+        self.rotor = self.params[ROTOR].copy()
+        self.viscous = self.params[VISCOUS].copy()
+        self.coulomb = self.params[COULOMB].copy()
 
     def rigid_body(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
         return pin.rnea(self.model, self.data, q, qd, qdd).copy()

@@ -16,8 +16,8 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from urident.model.kinematics import AXIS_INDEX
-from urident.model.parameters import COULOMB_OFFSET, ROTOR_OFFSET, VISCOUS_OFFSET
-from urident.model.robot import N_PARAMS, RobotSpec
+from urident.model.parameters import COULOMB_OFFSET, N_PARAMS, ROTOR_OFFSET, VISCOUS_OFFSET, body_slice
+from urident.model.robot import RobotSpec
 
 try:  # compiled kernel (setup.py builds it when a C compiler is available)
     from urident.model import _regressor_kernel
@@ -189,7 +189,7 @@ def _fill(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, frict
         y = np.ascontiguousarray(_body_wrench_regressor(w, wd, a).transpose(2, 0, 1))  # (N, 6, 10)
         motion = np.ascontiguousarray(np.concatenate([lin, ang]).transpose(2, 1, 0))  # (N, i+1, 6)
         # τ_k gets v_k · f_i + u_k · n_i from body i, for every joint k ≤ i.
-        out[:, : i + 1, 10 * i:10 * i + 10] = motion @ y
+        out[:, : i + 1, body_slice(i)] = motion @ y
     joints = np.arange(6)
     out[:, joints, ROTOR_OFFSET + joints] = qdd
     out[:, joints, VISCOUS_OFFSET + joints] = qd

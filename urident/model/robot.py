@@ -17,11 +17,9 @@ import numpy as np
 import yaml
 
 from urident.errors import ConfigError, UnknownRobotError, shown
+from urident.model.parameters import N_JOINTS, N_PARAMS, PARAMS_PER_BODY, standard_from_links  # noqa: F401
 
 ROBOTS_DIR = Path(__file__).parent / "robots"
-N_JOINTS = 6
-PARAMS_PER_BODY = 10
-N_PARAMS = 13 * N_JOINTS  # 60 rigid-body + 6 rotor + 6 viscous + 6 Coulomb
 
 _TOP_KEYS = {"name", "description", "generation", "controller_rate_hz", "controller_version",
              "gravity", "dh", "base_collision", "tool", "joints", "allowed_contacts"}
@@ -114,8 +112,6 @@ class RobotSpec:
     @property
     def nominal_params(self) -> np.ndarray:
         """The paper's 78-vector (eq. 39-40) of this robot's nominal parameters."""
-        from urident.model.parameters import standard_from_links
-
         return standard_from_links(self)
 
 

@@ -30,6 +30,7 @@ from scipy import signal
 
 from urident.errors import ConfigError, SafetyError
 from urident.logs import LOG_FIELDS, LogWriter, Recording
+from urident.model.parameters import check_standard
 from urident.model.regressor import DEFAULT_FRICTION_EPS, joint_torques
 from urident.simcontroller.effects import EffectSet, EffectsConfig, load_effects
 from urident.simcontroller.plant import Plant, servo_bandwidth
@@ -132,9 +133,7 @@ def simulate(spec, trajectory, rate_hz: float | None = None, effects=None, seed:
     rate = float(spec.controller_rate_hz if rate_hz is None else rate_hz)
     if not (np.isfinite(rate) and 0 < rate <= 10000):
         raise ConfigError(f"--rate {rate_hz}: must be a rate in Hz between 0 and 10000")
-    p = spec.nominal_params.copy() if params is None else np.asarray(params, dtype=float).copy()
-    if p.shape != (78,):
-        raise ValueError(f"params must be a 78-vector, got shape {p.shape}")
+    p = spec.nominal_params.copy() if params is None else check_standard(params).copy()
     plant_seed, effects_seed = np.random.SeedSequence(int(seed)).spawn(2)
     effect_set = _effect_set(effects, spec, p, friction_eps, np.random.default_rng(effects_seed))
 

@@ -21,6 +21,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from urident.model.parameters import COULOMB, ROTOR, VISCOUS
 from urident.simcontroller.effects.params import N_JOINTS, Param
 
 
@@ -41,15 +42,15 @@ class EffectContext:
 
     @property
     def rotor(self) -> np.ndarray:
-        return self.params[60:66]
+        return self.params[ROTOR]
 
     @property
     def viscous(self) -> np.ndarray:
-        return self.params[66:72]
+        return self.params[VISCOUS]
 
     @property
     def coulomb(self) -> np.ndarray:
-        return self.params[72:78]
+        return self.params[COULOMB]
 
     def sign(self, qd: np.ndarray) -> np.ndarray:
         """The model's smooth sign(q̇) = tanh(q̇/ε)."""

@@ -12,12 +12,10 @@ from urident.simcontroller.effects.params import N_JOINTS, Param
 def payload_params(spec, mass_kg: float, offset_m: np.ndarray) -> np.ndarray:
     """The 78-vector of a point mass ``mass_kg`` at ``offset_m`` in the tool frame, carried by
     body 6 (all other entries zero)."""
-    from urident.model.parameters import body_params
+    from urident.model.parameters import body_params, tool_body_vector
 
     com = np.asarray(spec.tool_xyz) + np.asarray(spec.tool_rotation) @ np.asarray(offset_m, float)
-    p = np.zeros(78)
-    p[50:60] = body_params(mass_kg, com, np.zeros((3, 3)))
-    return p
+    return tool_body_vector(body_params(mass_kg, com, np.zeros((3, 3))))
 
 
 class PayloadError(Effect):

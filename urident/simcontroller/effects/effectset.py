@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from urident.model.parameters import check_standard
 from urident.model.regressor import DEFAULT_FRICTION_EPS
 from urident.simcontroller.effects.base import EffectContext, EffectUsageError
 from urident.simcontroller.effects.catalogue import APPLY_ORDER, EFFECTS
@@ -65,9 +66,7 @@ class EffectSet:
         self._entries = sorted(config.entries, key=lambda e: (order[e.name], e.index))
         self.context: EffectContext | None = None
         if spec is not None:
-            p = spec.nominal_params if params is None else np.asarray(params, dtype=float)
-            if p.shape != (78,):
-                raise ValueError(f"params must be a 78-vector, got shape {p.shape}")
+            p = spec.nominal_params if params is None else check_standard(params)
             self.context = EffectContext(spec, p.copy(), self.friction_eps)
         self._torque_effects: list | None = None
         self._current_effects: list | None = None

@@ -1,0 +1,76 @@
+"""Feature columns of the torque model beyond the paper's regressor, shared by the identification
+model (:mod:`urident.ident.design`) and the gap diagnosis' candidates (:mod:`urident.gap.candidates`).
+
+Each function returns the values of a column that is linear in its coefficient, per joint:
+
+* :func:`stribeck`: tanh(q̇/ε)·exp(−(q̇/v_s)²), the extra static friction near zero speed;
+* :func:`load_friction`: |τ_L|·z, load-dependent Coulomb friction of a harmonic drive (the tooth and
+  bearing forces, hence the friction, grow with the transmitted torque τ_L); z the Coulomb state;
+* :func:`sqrt_viscous`: sign(q̇)·sqrt(|q̇|), a concave (sub-linear) viscous term, as the lubricant
+  film of a harmonic drive gives;
+* :func:`offset`: a constant (asymmetric Coulomb friction, current-sensor bias, static load);
+* :func:`link_torque`: the link-side rigid-body torque of a 78-vector (no rotor inertia, no
+  friction), the τ_L of the identification model's load friction;
+* :func:`tool_body_regressor`, :func:`payload_torque`, :func:`payload_columns`: the torque of a
+  payload carried by the last body, and the columns that fit one (point mass at the tool and the
+  first moments m·ρ of body 6).
+
+The history-driven Coulomb states (Dahl, hold) are in :mod:`urident.ident.friction`. The simulated
+controller's forward effects (:mod:`urident.simcontroller.effects`) are written separately on
+purpose: they are the ground truth the benchmarks score these columns against.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from urident.model.parameters import BODY_FIELDS, RIGID_BODY, TOOL_BODY, body_params
+
+#: Extra features whose coefficient must be >= 0 physically.
+NONNEGATIVE_EXTRAS = frozenset({"stribeck", "dahl", "load", "sqrtvisc"})
+#: The first-moment entries (m·ρx, m·ρy, m·ρz) among a body's ten parameters.
+FIRST_MOMENTS = slice(BODY_FIELDS.index("mrx"), BODY_FIELDS.index("mrz") + 1)
+
+
+def stribeck(qd: np.ndarray, eps: float, vs: float) -> np.ndarray:
+    """tanh(q̇/ε)·exp(−(q̇/v_s)²) for velocities ``qd`` [rad/s], slope ``eps``, Stribeck velocity ``vs``."""
+    qd = np.asarray(qd, dtype=float)
+    return np.tanh(qd / eps) * np.exp(-(qd / vs) ** 2)
+
+
+def load_friction(link_torque: np.ndarray, coulomb_state: np.ndarray) -> np.ndarray:
+    """|τ_L|·z from the link-side torque [N·m] and the Coulomb state z (tanh, Dahl or hold)."""
+    return np.abs(link_torque) * coulomb_state
+
+
+def sqrt_viscous(qd: np.ndarray) -> np.ndarray:
+    qd = np.asarray(qd, dtype=float)
+    return np.sign(qd) * np.sqrt(np.abs(qd))
+
+
+def offset(shape) -> np.ndarray:
+    return np.ones(shape)
+
+
+def link_torque(blocks: np.ndarray, params: np.ndarray) -> np.ndarray:
+    """(N, 6) rigid-body torque of the 78-vector ``params`` from the (N, 6, 78) regressor: the six
+    bodies' parameters only (no rotor inertia, no friction)."""
+    return blocks[:, :, RIGID_BODY] @ np.asarray(params, dtype=float)[RIGID_BODY]
+
+
+def tool_body_regressor(blocks: np.ndarray) -> np.ndarray:
+    """(N, 6, 10) regressor columns of the last body (a payload's parameters add to its)."""
+    return blocks[:, :, TOOL_BODY]
+
+
+def payload_torque(blocks: np.ndarray, payload: np.ndarray) -> np.ndarray:
+    """(N, 6) torque of a payload (its ten parameters about K_6) from the (N, 6, 78) regressor."""
+    return tool_body_regressor(blocks) @ np.asarray(payload, dtype=float)
+
+
+def payload_columns(blocks: np.ndarray, tool_xyz) -> np.ndarray:
+    """(N, 6, 4) columns of a payload error: the torque of 1 kg at the tool point ``tool_xyz``
+    (K_6) and the three first-moment columns m·ρ of body 6 (a centre-of-mass shift)."""
+    y6 = tool_body_regressor(blocks)
+    point = y6 @ body_params(1.0, np.asarray(tool_xyz, float), np.zeros((3, 3)))
+    return np.concatenate([point[:, :, None], y6[:, :, FIRST_MOMENTS]], axis=2)
