@@ -63,11 +63,10 @@ whose effect does not matter (the right answer there is "nothing found") and on 
 
 Materiality (part of the diagnosis, not of the scoring): besides a held-out gain whose interval
 lies above 0 and a shrink of >= ``GapConfig.min_shrink_pct`` (3 %) of the joint's validation RMS
-(:data:`urident.gap.diagnose.MIN_SHRINK_CALIBRATION`: effect-free scans, and why not 2 %), a
-finding fitted inside the validation logs
-(CV mode: "the effect differs between the runs") must correct its joint by an RMS of at least
+(``docs/gap-calibration.md``: effect-free scans, and why not 2 %), a finding fitted inside the
+validation logs (CV mode: "the effect differs between the runs") must correct its joint by an RMS of at least
 ``GapConfig.cv_min_noise_ratio`` (0.5) times the joint's white-noise torque, estimated by the
-diagnosis from the differences of its own validation residual (:func:`urident.gap.diagnose.material_cv`).
+diagnosis from the differences of its own validation residual (:func:`urident.gap.significance.material_cv`).
 The factor was calibrated on effect-free scenarios only (seeds 1-4, 28 scenarios: the CV
 candidates passing the other tests there corrected 0.25-0.40 σ, 5-8 mA offsets on joints 2-3 that
 soak up the baseline's trajectory-dependent misfit), never on the truth of effect scenarios.

@@ -191,7 +191,7 @@ def _score(effect, k, d, significant=True, mode="ident"):
     """A scored candidate with ``k`` columns and per-sample improvements ``d`` (for the selection
     rules, which read only these)."""
     from urident.gap.candidates import Candidate
-    from urident.gap.diagnose import Score
+    from urident.gap.results import Score
 
     cols = tuple(f"c{i}" for i in range(k))
     c = Candidate(effect, 1, "", mode, cols, lambda ctx: None)
@@ -201,26 +201,26 @@ def _score(effect, k, d, significant=True, mode="ident"):
 
 
 def test_a_confounded_simpler_explanation_as_good_as_the_best_is_chosen():
-    from urident.gap.diagnose import _simplest_equivalent
+    from urident.gap.selection import simplest_equivalent
 
     rng = np.random.default_rng(0)
     base = 1.0 + rng.normal(0.0, 0.3, 4000)
     cfg = GapConfig(n_boot=300)
     ripple = _score("position_ripple", 2, base * 1.02)     # two columns, 2 % more gain
     offset = _score("current_offset", 1, base)             # one column
-    assert _simplest_equivalent(ripple, [offset], [ripple, offset], 200, cfg) is offset
+    assert simplest_equivalent(ripple, [offset], [ripple, offset], 200, cfg) is offset
     # clearly worse (20 % less gain, far outside the paired interval): the best stays
     weak = _score("current_offset", 1, base * 0.8)
-    assert _simplest_equivalent(ripple, [weak], [ripple, weak], 200, cfg) is ripple
+    assert simplest_equivalent(ripple, [weak], [ripple, weak], 200, cfg) is ripple
     # not significant, or not simpler: the best stays
     insig = _score("current_offset", 1, base, significant=False)
-    assert _simplest_equivalent(ripple, [insig], [ripple, insig], 200, cfg) is ripple
+    assert simplest_equivalent(ripple, [insig], [ripple, insig], 200, cfg) is ripple
     drift = _score("thermal_drift", 2, base)
-    assert _simplest_equivalent(ripple, [drift], [ripple, drift], 200, cfg) is ripple
+    assert simplest_equivalent(ripple, [drift], [ripple, drift], 200, cfg) is ripple
     # no tolerance: only the paired interval decides, and 2 % more gain with this little noise
     # is a real difference
     strict = GapConfig(n_boot=300, parsimony_tol=0.0)
-    assert _simplest_equivalent(ripple, [offset], [ripple, offset], 200, strict) is ripple
+    assert simplest_equivalent(ripple, [offset], [ripple, offset], 200, strict) is ripple
 
 
 def test_the_logged_target_moment_is_reported_beside_the_identified_model(spec):

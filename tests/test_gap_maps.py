@@ -86,7 +86,7 @@ def test_effect_names_are_the_catalogue_s():
 def test_implausible_fits_are_not_findings():
     """Sign/size constraints of the catalogue's physics on fitted coefficients."""
     from urident.gap.candidates import current_delay, current_offset, load_friction, stribeck
-    from urident.gap.diagnose import MIN_PAYLOAD_KG, plausible
+    from urident.gap.significance import MIN_PAYLOAD_KG, plausible
 
     assert plausible(stribeck(1, 0.02), np.array([0.5]))
     assert not plausible(stribeck(1, 0.02), np.array([-0.5]))     # less friction at rest
@@ -105,15 +105,15 @@ def test_implausible_fits_are_not_findings():
 
 
 def test_payload_joint_is_the_largest_share_of_the_joint_torque():
-    from urident.gap.diagnose import _main_joint
+    from urident.gap.significance import main_joint
 
     tau = np.ones((50, 6)) * np.array([10.0, 100.0, 50.0, 2.0, 2.0, 1.0])
     change = np.ones((50, 6)) * np.array([0.0, 8.0, 5.0, 0.4, 0.1, 0.05])
-    assert _main_joint(change, tau) == 3          # 20 % of joint 4's torque beats 8 % of joint 2's
+    assert main_joint(change, tau) == 3          # 20 % of joint 4's torque beats 8 % of joint 2's
 
 
 def test_noise_sigma_sees_the_white_noise_not_the_slow_structure(rng):
-    from urident.gap.diagnose import noise_sigma
+    from urident.gap.significance import noise_sigma
 
     t = np.arange(4000) / 200.0
     r = rng.normal(0, 0.17, (len(t), 6))
@@ -123,7 +123,7 @@ def test_noise_sigma_sees_the_white_noise_not_the_slow_structure(rng):
 
 
 def test_cv_findings_need_a_correction_above_the_noise_floor():
-    from urident.gap.diagnose import material_cv
+    from urident.gap.significance import material_cv
 
     sigma = 0.17
     assert not material_cv(np.full(100, 0.043), sigma, 0.5)   # a 5 mA offset on joint 3: 0.25 σ

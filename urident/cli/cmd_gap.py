@@ -41,7 +41,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "'urident simulate --list-effects')")
     p.add_argument("--min-shrink", dest="min_shrink_pct", type=float, default=None, metavar="PCT",
                    help="a finding must shrink its joint's validation RMS by at least this "
-                        "(default 3; see urident.gap.diagnose.MIN_SHRINK_CALIBRATION)")
+                        "(default 3; see docs/gap-calibration.md)")
     p.add_argument("--cv-min-noise", dest="cv_min_noise_ratio", type=float, default=0.5,
                    metavar="RATIO",
                    help="a finding fitted inside the validation logs (CV mode) must correct its "

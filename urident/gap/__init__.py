@@ -12,13 +12,16 @@ residual on the validation data), :mod:`.maps` (where: binned maps over velocity
 angle, time and frequency; angle-domain spectrum), :mod:`.candidates` (which: one set of regressor
 columns per catalogue effect and joint), :mod:`.scoring` (refit on the identification logs or
 blocked cross-validation inside the validation logs, held-out scores), :mod:`.bootstrap` (block
-bootstrap over time), :mod:`.diagnose` (greedy forward selection, confounds, how far),
-:mod:`.report` (console table and JSON).
+bootstrap over time), :mod:`.significance` (the held-out tests of a candidate), :mod:`.selection`
+(stepwise selection, confounds), :mod:`.where` (the where-text), :mod:`.config` (settings),
+:mod:`.results` (result types and JSON), :mod:`.diagnose` (the entry points), :mod:`.report`
+(console table and markdown). How the thresholds were calibrated: ``docs/gap-calibration.md``.
 """
 
-from urident.gap.diagnose import (NO_EFFECT, Finding, GapConfig, GapResult, diagnose,
-                                  diagnose_prepared)
+from urident.gap.config import NO_EFFECT, GapConfig
+from urident.gap.diagnose import diagnose, diagnose_prepared
 from urident.gap.report import format_report
+from urident.gap.results import Finding, GapResult
 
 __all__ = ["NO_EFFECT", "Finding", "GapConfig", "GapResult", "diagnose", "diagnose_prepared",
            "format_report"]

@@ -1,64 +1,7 @@
-"""Console table and JSON of a :class:`~urident.gap.diagnose.GapResult`."""
+"""Console table and markdown of a :class:`~urident.gap.results.GapResult` (its JSON:
+:func:`urident.gap.results.result_dict`)."""
 
 from __future__ import annotations
-
-import numpy as np
-
-
-def _list(x) -> list[float]:
-    return [float(v) for v in np.asarray(x, float)]
-
-
-def result_dict(res) -> dict:
-    """The JSON document: baseline, findings, final (the required keys) and the details."""
-    return _clean(_result_dict(res))
-
-
-def _clean(x):
-    """JSON-safe: numpy scalars to Python, non-finite floats to None."""
-    if isinstance(x, dict):
-        return {str(k): _clean(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_clean(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _clean(x.tolist())
-    if isinstance(x, (bool, np.bool_)):
-        return bool(x)
-    if isinstance(x, (int, np.integer)):
-        return int(x)
-    if isinstance(x, (float, np.floating)):
-        return float(x) if np.isfinite(x) else None
-    return x
-
-
-def _result_dict(res) -> dict:
-    from urident.gap.diagnose import NO_EFFECT
-
-    b, f = res.baseline_rms, res.final_rms
-    steps = []
-    for k, scores in enumerate(res.steps):
-        steps.append({"step": k + 1, "candidates": [s.row() for s in scores]})
-    return {
-        "robot": res.robot,
-        "verdict": res.verdict,
-        "no_effect_found": not res.findings,
-        "baseline": {"e_n": float(res.baseline_e_n), "rms_nm": _list(b), "method": res.model.method,
-                     "friction_eps": float(res.model.model.friction_eps),
-                     "n_ident_samples": res.ident.n, "n_valid_samples": res.valid.n},
-        "findings": [x.as_dict() for x in res.findings],
-        "final": {"e_n": float(res.final_e_n), "rms_nm": _list(f),
-                  "shrink_pct": _list(np.where(b > 0, 100 * (1 - f / np.where(b > 0, b, 1)), 0.0)),
-                  "e_n_shrink_pct": float(100 * (1 - res.final_e_n / res.baseline_e_n))
-                  if res.baseline_e_n > 0 else 0.0},
-        "confounded": res.confounds,
-        "where": res.where,
-        "candidates": steps,
-        "settings": {"min_shrink_pct": res.config.min_shrink_pct,
-                     "cv_min_noise_ratio": res.config.cv_min_noise_ratio, "level": res.config.level,
-                     "n_boot": res.config.n_boot, "n_folds": res.config.n_folds,
-                     "block_s": res.config.block_s, "parsimony_tol": res.config.parsimony_tol,
-                     "confound_corr": res.config.confound_corr, "no_effect_text": NO_EFFECT},
-    }
 
 
 def format_report(res, top: int = 12) -> str:

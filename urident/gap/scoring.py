@@ -24,7 +24,7 @@ from urident.gap.candidates import Candidate
 from urident.gap.residual import SetContext
 
 
-def _lstsq(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+def lstsq(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Least squares through the (column-scaled) normal equations: x has few columns."""
     gram = x.T @ x
     scale = np.sqrt(np.diag(gram))
@@ -118,7 +118,7 @@ class Scorer:
             f, y = self.f_ident(c), self.r_ident
         else:
             f, y = c.features(self.valid).reshape(-1, c.k), self.r_valid.reshape(-1)
-        beta = _lstsq(f, y)
+        beta = lstsq(f, y)
         e = y - f @ beta
         return float(y @ y - e @ e)
 
@@ -130,7 +130,7 @@ class Scorer:
         beta_i = np.zeros(0)
         if ident:
             f_id = np.hstack([self.f_ident(c) for c in ident])
-            beta_i = _lstsq(f_id, self.r_ident)
+            beta_i = lstsq(f_id, self.r_ident)
             f_va = np.hstack([self.f_valid(c) for c in ident])
             r = r - (f_va @ beta_i).reshape(-1, 6)
         beta_c = np.zeros(0)
@@ -140,8 +140,8 @@ class Scorer:
             pred = np.zeros_like(r)
             for b in range(self.n_folds):
                 train = self.fold != b
-                beta_b = _lstsq(feats[train].reshape(-1, k), r[train].reshape(-1))
+                beta_b = lstsq(feats[train].reshape(-1, k), r[train].reshape(-1))
                 pred[~train] = feats[~train] @ beta_b
-            beta_c = _lstsq(feats.reshape(-1, k), r.reshape(-1))
+            beta_c = lstsq(feats.reshape(-1, k), r.reshape(-1))
             r = r - pred
         return Fit(ident, beta_i, cv, beta_c, r, {c: self.g(c) for c in ident})

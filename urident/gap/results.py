@@ -1,0 +1,178 @@
+"""What a diagnosis returns: scored candidates (:class:`Score`), findings, the
+:class:`GapResult`, and its JSON document (:func:`result_dict`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+from urident.gap.candidates import Candidate
+from urident.gap.config import NO_EFFECT, GapConfig
+from urident.gap.residual import SetContext
+from urident.gap.scoring import Fit, Scorer
+
+
+def rms(r: np.ndarray) -> np.ndarray:
+    return np.sqrt(np.mean(r * r, axis=0))
+
+
+def e_n(r: np.ndarray) -> float:
+    return float(np.linalg.norm(r) / r.shape[0])
+
+
+@dataclass(eq=False)
+class Score:
+    """One candidate scored on top of the current model."""
+
+    candidate: Candidate
+    fit: Fit
+    gain: float                      # mean per-sample improvement Σ_j Δr² [N·m²]
+    ci: tuple[float, float]
+    joint: int                       # 0-based joint it helps most (its own for one-joint effects)
+    rms_before: np.ndarray
+    rms_after: np.ndarray
+    significant: bool
+    change: np.ndarray = field(repr=False)       # (N, 6) correction of the prediction
+    d: np.ndarray = field(repr=False)            # (N,) per-sample improvement
+
+    @property
+    def shrink_pct(self) -> float:
+        b, a = self.rms_before[self.joint], self.rms_after[self.joint]
+        return float(100.0 * (1.0 - a / b)) if b > 0 else 0.0
+
+    def row(self, spec=None) -> dict:
+        c = self.candidate
+        coef = self.fit.coefficients()[c]
+        return {"effect": c.effect, "joint": self.joint + 1, "variant": c.variant, "mode": c.mode,
+                "gain_nm2": self.gain, "gain_ci95_nm2": list(self.ci),
+                "rms_before_nm": float(self.rms_before[self.joint]),
+                "rms_after_nm": float(self.rms_after[self.joint]), "shrink_pct": self.shrink_pct,
+                "significant": bool(self.significant), "magnitude": c.magnitude(coef, spec)}
+
+
+@dataclass(frozen=True)
+class Finding:
+    joint: int                       # 1-based
+    effect: str
+    variant: str
+    mode: str
+    regime: str
+    rms_before_nm: float
+    rms_after_nm: float
+    shrink_pct: float
+    confidence: str                  # high | medium | confounded
+    gain_ci95_nm2: tuple[float, float]
+    magnitude: dict
+    confounded_with: tuple[str, ...] = ()
+    joints: tuple[int, ...] = ()     # 1-based; an effect on all joints: every joint where its
+                                     # share of the joint's torque is >= MAIN_SHARE of the largest
+
+    def as_dict(self) -> dict:
+        return {"joint": self.joint, "joints": list(self.joints or (self.joint,)), "effect": self.effect, "variant": self.variant, "mode": self.mode,
+                "regime": self.regime, "rms_before_nm": self.rms_before_nm,
+                "rms_after_nm": self.rms_after_nm, "shrink_pct": self.shrink_pct,
+                "confidence": self.confidence, "gain_ci95_nm2": list(self.gain_ci95_nm2),
+                "magnitude": self.magnitude, "confounded_with": list(self.confounded_with)}
+
+
+@dataclass(eq=False)
+class GapResult:
+    robot: str
+    model: object                    # the baseline IdentifiedModel
+    ident: SetContext
+    valid: SetContext
+    baseline_e_n: float
+    baseline_rms: np.ndarray
+    final_e_n: float
+    final_rms: np.ndarray
+    findings: list[Finding]
+    fit: Fit                         # the selected candidates, fitted
+    steps: list[list[Score]]         # every candidate scored at every greedy step
+    confounds: list[dict]
+    where: dict                      # per-joint maps and regimes
+    config: GapConfig
+    scorer: Scorer | None = None     # to fit any candidates on the same data (benchmarks)
+
+    @property
+    def verdict(self) -> str:
+        if not self.findings:
+            return NO_EFFECT
+        return "; ".join(f"{f.effect} on joint {f.joint}" for f in self.findings)
+
+    def chosen(self) -> list[Candidate]:
+        return list(self.fit.ident) + list(self.fit.cv)
+
+    def best_of(self, effect: str, joint: int | None) -> Candidate | None:
+        """The best-scoring first-step candidate of ``effect`` on 0-based ``joint`` (any joint
+        for effects on all joints)."""
+        best = None
+        for s in self.steps[0] if self.steps else []:
+            c = s.candidate
+            if c.effect == effect and (c.joint is None or c.joint == joint):
+                if best is None or s.gain > best.gain:
+                    best = s
+        return None if best is None else best.candidate
+
+    def correction(self, candidates: Sequence[Candidate]) -> Fit:
+        """``candidates`` fitted together on this diagnosis' data (as the selection would be);
+        ``.change(make_context(spec, result.model, other_set))`` applies them elsewhere."""
+        return self.scorer.evaluate(list(candidates))
+
+    def as_dict(self) -> dict:
+        return result_dict(self)
+
+
+def _list(x) -> list[float]:
+    return [float(v) for v in np.asarray(x, float)]
+
+
+def result_dict(res) -> dict:
+    """The JSON document: baseline, findings, final (the required keys) and the details."""
+    return json_safe(_document(res))
+
+
+def json_safe(x):
+    """``x`` made JSON-safe: numpy scalars to Python, non-finite floats to None."""
+    if isinstance(x, dict):
+        return {str(k): json_safe(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [json_safe(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return json_safe(x.tolist())
+    if isinstance(x, (bool, np.bool_)):
+        return bool(x)
+    if isinstance(x, (int, np.integer)):
+        return int(x)
+    if isinstance(x, (float, np.floating)):
+        return float(x) if np.isfinite(x) else None
+    return x
+
+
+def _document(res) -> dict:
+    b, f = res.baseline_rms, res.final_rms
+    steps = []
+    for k, scores in enumerate(res.steps):
+        steps.append({"step": k + 1, "candidates": [s.row() for s in scores]})
+    return {
+        "robot": res.robot,
+        "verdict": res.verdict,
+        "no_effect_found": not res.findings,
+        "baseline": {"e_n": float(res.baseline_e_n), "rms_nm": _list(b), "method": res.model.method,
+                     "friction_eps": float(res.model.model.friction_eps),
+                     "n_ident_samples": res.ident.n, "n_valid_samples": res.valid.n},
+        "findings": [x.as_dict() for x in res.findings],
+        "final": {"e_n": float(res.final_e_n), "rms_nm": _list(f),
+                  "shrink_pct": _list(np.where(b > 0, 100 * (1 - f / np.where(b > 0, b, 1)), 0.0)),
+                  "e_n_shrink_pct": float(100 * (1 - res.final_e_n / res.baseline_e_n))
+                  if res.baseline_e_n > 0 else 0.0},
+        "confounded": res.confounds,
+        "where": res.where,
+        "candidates": steps,
+        "settings": {"min_shrink_pct": res.config.min_shrink_pct,
+                     "cv_min_noise_ratio": res.config.cv_min_noise_ratio, "level": res.config.level,
+                     "n_boot": res.config.n_boot, "n_folds": res.config.n_folds,
+                     "block_s": res.config.block_s, "parsimony_tol": res.config.parsimony_tol,
+                     "confound_corr": res.config.confound_corr, "no_effect_text": NO_EFFECT},
+    }

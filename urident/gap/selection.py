@@ -1,0 +1,225 @@
+"""Stepwise selection of the catalogue effects that explain the residual.
+
+Greedy forward selection: every candidate of the pool is scored on top of the current model
+(:func:`urident.gap.significance.score_all`); the best significant one is kept and the others are
+tested again on top, until none is significant (or ``max_effects``). Phase A first makes the
+identification consistent (identification-mode candidates short-listed by their in-sample gain,
+:func:`ident_shortlist`); phase B takes any candidate by its held-out gain. None at the first step:
+"no unmodelled effect found". Then the backward half (:func:`backward`): each chosen effect is
+tested again on top of the others; those no longer significant are dropped, and the findings are
+ordered by their unique contribution.
+
+Confounds: a candidate of another effect (or joint) whose correction correlates with the chosen
+one's (uncentred) by |ρ| ≥ ``confound_corr`` and whose improvement interval overlaps the chosen
+one's is reported as confounded with it (:func:`confounded`); when such a candidate has fewer
+columns and a held-out gain the data cannot tell from the chosen one's, it is chosen instead
+(:func:`simplest_equivalent`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from urident.gap.bootstrap import block_bootstrap_means, interval
+from urident.gap.candidates import Candidate
+from urident.gap.config import GapConfig
+from urident.gap.residual import SetContext
+from urident.gap.results import Finding, Score
+from urident.gap.scoring import Fit, Scorer, lstsq
+from urident.gap.significance import MAIN_SHARE, admissible, score_all, shares
+from urident.gap.where import finding_regime
+
+
+def select(scorer: Scorer, pool: list[Candidate], block: int, config: GapConfig, ctx_v: SetContext,
+           spec) -> tuple[list[Finding], list[list[Score]], list[dict], Fit]:
+    """Forward, then backward selection over ``pool`` (module doc): the findings, every step's
+    scores, the confound rows and the fit of the selected candidates."""
+    selected: list[Candidate] = []
+    findings: list[Finding] = []
+    steps: list[list[Score]] = []
+    confounds: list[dict] = []
+    current = scorer.evaluate([])
+    consistent = False          # phase A (identification consistency) over
+    for step in range(config.max_effects + 1):
+        taken = {c.key for c in selected}
+        free = [c for c in pool if c.key not in taken]
+        scores = score_all(scorer, current, free, block, config)
+        steps.append(scores)
+        if step == config.max_effects:
+            break
+        best = None
+        if not consistent:
+            # A: an effect present in the identification logs distorts the base parameters and
+            # spreads its error over other joints of the validation logs, where a CV-mode
+            # effect (an offset "of the day", a payload) would explain it. So first make the
+            # identification consistent: short-list the identification-mode candidates by how
+            # much they reduce the identification residual on top of those already chosen,
+            # and keep the one the validation logs confirm (significant held-out gain).
+            short = {id(c) for c in ident_shortlist(scorer, selected, free, config)}
+            sig = [s for s in scores if s.significant and id(s.candidate) in short]
+            if sig:
+                best = max(sig, key=lambda s: s.gain)
+            else:
+                consistent = True
+        if best is None:
+            # B: any candidate (identification or CV mode) by its held-out gain alone
+            sig = [s for s in scores if s.significant and admissible(s, scores)]
+            if not sig:
+                break
+            best = max(sig, key=lambda s: s.gain)
+        conf = confounded(best, scores, block, config)
+        simpler = simplest_equivalent(best, conf, scores, block, config)
+        if simpler is not best:
+            best = simpler
+            conf = confounded(best, scores, block, config)
+        confounds += confound_rows(step, best, conf)
+        findings.append(make_finding(best, conf, ctx_v, spec))
+        selected.append(best.candidate)
+        current = best.fit
+
+    if len(selected) > 1:
+        kept = backward(scorer, selected, block, config)
+        if [id(c) for c in kept] != [id(c) for c in selected]:
+            # findings and confounds again, step by step in the kept order
+            findings, confounds, current = [], [], scorer.evaluate([])
+            for step, c in enumerate(kept):
+                done = {o.key for o in kept[:step]}
+                scores = score_all(scorer, current, [o for o in pool if o.key not in done], block, config)
+                s = next(x for x in scores if x.candidate is c)
+                conf = confounded(s, scores, block, config)
+                confounds += confound_rows(step, s, conf)
+                findings.append(make_finding(s, conf, ctx_v, spec))
+                current = s.fit
+
+    return findings, steps, confounds, current
+
+
+def confound_rows(step: int, chosen: Score, conf: list[Score]) -> list[dict]:
+    """The report's rows for the candidates confounded with ``chosen`` at 0-based ``step``."""
+    return [{"step": step + 1, "chosen": label(chosen), "alternative": label(other),
+             "correlation": float(corr(chosen.change, other.change)), "gain_nm2": [chosen.gain, other.gain]}
+            for other in conf]
+
+
+def backward(scorer: Scorer, selected: list[Candidate], block: int, config: GapConfig) -> list[Candidate]:
+    """The backward half of stepwise selection, on the forward pass's choices: each chosen effect
+    is tested again on top of all the others (same tests as when it was chosen); the weakest one
+    that is no longer significant is dropped, until all are. The kept ones are returned ordered
+    by that unique contribution, largest first. Why: a wrong joint can win the first forward step
+    by a hair (docs/gap-calibration.md)."""
+    kept = list(selected)
+    while True:
+        tests = []
+        for c in kept:
+            rest = scorer.evaluate([o for o in kept if o is not c])
+            tests.append(score_all(scorer, rest, [c], block, config)[0])
+        weakest = min(tests, key=lambda s: s.gain)
+        if len(kept) == 1 or weakest.significant:
+            return [s.candidate for s in sorted(tests, key=lambda s: -s.gain)]
+        kept.remove(weakest.candidate)
+
+
+def ident_shortlist(scorer: Scorer, selected: list[Candidate], free: list[Candidate],
+                    config: GapConfig) -> list[Candidate]:
+    """Identification-mode candidates whose in-sample reduction of the identification residual
+    (jointly with the identification-mode effects already chosen) is at least
+    ``shortlist_ratio`` of the best one's, at most ``shortlist_size`` of them."""
+    y = scorer.r_ident
+    chosen = [c for c in selected if c.mode == "ident"]
+    f0 = np.hstack([scorer.f_ident(c) for c in chosen]) if chosen else np.zeros((len(y), 0))
+    e0 = y - f0 @ lstsq(f0, y) if chosen else y
+    ss0 = float(e0 @ e0)
+    gains = []
+    for c in free:
+        if c.mode != "ident":
+            continue
+        f = np.hstack([f0, scorer.f_ident(c)])
+        e = y - f @ lstsq(f, y)
+        gains.append((ss0 - float(e @ e), c))
+    if not gains:
+        return []
+    gains.sort(key=lambda g: -g[0])
+    top = gains[0][0]
+    if top <= 0:
+        return []
+    return [c for g, c in gains[:config.shortlist_size] if g >= config.shortlist_ratio * top]
+
+
+def simplest_equivalent(best: Score, conf: list[Score], scores: list[Score], block: int,
+                        config: GapConfig) -> Score:
+    """Among ``best`` and the candidates confounded with it (:func:`confounded`) that are
+    significant and admissible, the one with the fewest fitted columns whose held-out gain the data
+    does not tell from ``best``'s in practice: the paired block-bootstrap interval of the
+    per-sample difference of their improvements contains 0, or the alternative keeps at least
+    1 − ``parsimony_tol`` of ``best``'s gain. Equal column counts keep the larger gain, so
+    ``best`` stays unless a simpler explanation is as good.
+
+    Why: the larger one's extra columns also soak up the baseline's own misfit (Occam; the
+    confound is still reported either way; docs/gap-calibration.md)."""
+    alts = [s for s in conf if s.significant and admissible(s, scores)
+            and s.candidate.k < best.candidate.k]
+    if not alts:
+        return best
+    diffs = np.stack([best.d - s.d for s in alts], axis=1)
+    boot = block_bootstrap_means(diffs, block, config.n_boot, config.seed)
+    equal = [s for i, s in enumerate(alts) if interval(boot[:, i], config.level)[0] <= 0
+             or s.gain >= (1.0 - config.parsimony_tol) * best.gain]
+    if not equal:
+        return best
+    return min(equal, key=lambda s: (s.candidate.k, -s.gain))
+
+
+def label(s: Score) -> str:
+    c = s.candidate
+    return f"{c.effect} on joint {s.joint + 1}" + (f" ({c.variant})" if c.variant else "")
+
+
+def corr(a: np.ndarray, b: np.ndarray) -> float:
+    """Uncentred correlation (cosine) of two corrections: regression columns have no intercept,
+    so a constant and a nearly constant correction are the same explanation."""
+    a = a.reshape(-1)
+    b = b.reshape(-1)
+    den = np.sqrt((a @ a) * (b @ b))
+    return float(a @ b / den) if den > 0 else 0.0
+
+
+def confounded(best: Score, scores: list[Score], block: int, config: GapConfig) -> list[Score]:
+    """Candidates of another (effect, joint) whose correction is nearly the same as ``best``'s
+    (uncentred correlation ≥ ``confound_corr``) and whose improvement interval overlaps
+    ``best``'s: the data cannot tell them apart."""
+    out = []
+    seen = set()
+    for s in scores:
+        key = s.candidate.key
+        if s is best or key == best.candidate.key or key in seen or s.gain <= 0:
+            continue
+        if s.ci[1] < best.ci[0]:
+            continue
+        if abs(corr(best.change, s.change)) < config.confound_corr:
+            continue
+        seen.add(key)
+        out.append(s)
+    return out
+
+
+def make_finding(best: Score, conf: list[Score], ctx: SetContext, spec) -> Finding:
+    c = best.candidate
+    j = best.joint
+    before = best.rms_before[j]
+    after = best.rms_after[j]
+    regime = finding_regime(best, ctx)
+    lo, hi = best.ci
+    labels = tuple(label(s) for s in conf)
+    if labels:
+        confidence = "confounded"
+    else:
+        z = best.gain / max((hi - lo) / (2 * 1.96), 1e-300)
+        confidence = "high" if (z > 4 and best.shrink_pct >= 10) else "medium"
+    coef = best.fit.coefficients()[c]
+    joints = (j + 1,)
+    if c.joint is None:
+        share = shares(best.change, ctx.tau)
+        joints = tuple(int(k) + 1 for k in np.flatnonzero(share >= MAIN_SHARE * share.max()))
+    return Finding(j + 1, c.effect, c.variant, c.mode, regime, float(before), float(after),
+                   best.shrink_pct, confidence, (lo, hi), c.magnitude(coef, spec),
+                   labels, joints)

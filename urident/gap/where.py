@@ -1,0 +1,63 @@
+"""Where the residual lies: per-joint RMS, share of the energy, maps, spectra and the regimes
+where it concentrates (:func:`describe_where`), and where a finding's improvement lies
+(:func:`finding_regime`)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from urident.gap import maps
+from urident.gap.controller import controller_reference
+from urident.gap.residual import SetContext
+from urident.gap.results import Score
+
+PREFER_AXIS = {"stribeck": ("velocity",), "load_friction": ("load",), "thermal_drift": ("time",),
+                "position_ripple": ("angle",), "current_offset": ("velocity", "angle"),
+                "torque_constant_error": ("load",), "payload_error": ("angle",),
+                "current_delay": (), "joint_elasticity": ()}
+
+
+def signed_load(ctx: SetContext) -> np.ndarray:
+    return np.sign(ctx.qd) * np.abs(ctx.tau_hat)
+
+
+def finding_regime(best: Score, ctx: SetContext) -> str:
+    """The text of where ``best``'s improvement on its joint concentrates (``ctx``: validation)."""
+    c = best.candidate
+    j = best.joint
+    base_r = best.change + best.fit.residual          # residual before this step
+    gain_j = base_r[:, j] ** 2 - best.fit.residual[:, j] ** 2
+    reg = maps.best_regime(j, gain_j, ctx.qd[:, j], signed_load(ctx)[:, j], ctx.q[:, j],
+                           ctx.data.run_time, PREFER_AXIS.get(c.effect, ()))
+    if reg is not None:
+        regime = reg.text("of the improvement")
+    else:
+        regime = f"joint {j + 1}: spread over all regimes"
+    if c.effect == "current_delay":
+        fm = maps.frequency_map(base_r[:, j], ctx.data.sample_rate, ctx.dtau[:, j])
+        regime += f"; residual vs dτ̂/dt correlation {fm.corr_dtau:+.2f}"
+    return regime
+
+
+def describe_where(ctx: SetContext, ident: SetContext | None = None) -> dict:
+    """Per joint: RMS, share of the residual energy, maps, angle spectrum, frequency map and the
+    regimes where the residual concentrates (texts)."""
+    r = ctx.residual
+    energy = np.sum(r * r, axis=0)
+    total = float(energy.sum()) or 1.0
+    load = signed_load(ctx)
+    out = {"joints": []}
+    fs = ctx.data.sample_rate
+    for j in range(6):
+        jm = maps.joint_maps(r[:, j], ctx.qd[:, j], load[:, j], ctx.q[:, j], ctx.data.run_time)
+        regimes = maps.concentrated_regimes(j, jm)
+        spec_a = maps.angle_spectrum(r[:, j], ctx.q[:, j], ctx.qd[:, j], ctx.friction_eps)
+        fm = maps.frequency_map(r[:, j], fs, ctx.dtau[:, j])
+        out["joints"].append({
+            "joint": j + 1, "rms_nm": float(np.sqrt(energy[j] / len(r))),
+            "energy_share": float(energy[j] / total), "mean_nm": float(r[:, j].mean()),
+            "maps": {k: [b.as_dict() for b in v] for k, v in jm.items()},
+            "angle_spectrum": spec_a.as_dict(), "frequency": fm.as_dict(),
+            "regimes": [g.text() for g in regimes]})
+    out["controller_model"] = controller_reference(ctx, ident)
+    return out
