@@ -335,7 +335,7 @@ class LiveStreamer:
 
     # ------------------------------------------------------------------ setup helpers
     def _resolve_sink(self, save, spawn, connect, fallback_save, strict) -> dict | None:
-        from urident.viz.recording import DEFAULT_URL, ViewerUnavailable, _unreachable_reason, \
+        from urident.viz.recording import DEFAULT_URL, ViewerUnavailable, unreachable_reason, \
             viewer_unavailable_reason
 
         if sum((save is not None, bool(spawn), connect is not None)) != 1:
@@ -346,7 +346,7 @@ class LiveStreamer:
             reason = viewer_unavailable_reason()
             what = "cannot spawn a Rerun viewer"
         else:
-            reason = _unreachable_reason(connect or DEFAULT_URL)
+            reason = unreachable_reason(connect or DEFAULT_URL)
             what = f"cannot reach a Rerun viewer at {connect or DEFAULT_URL}"
         if reason is None:
             return {"spawn": True} if spawn else {"connect": connect}

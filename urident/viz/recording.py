@@ -39,7 +39,7 @@ def viewer_unavailable_reason() -> str | None:
     return None
 
 
-def _unreachable_reason(url: str) -> str | None:
+def unreachable_reason(url: str) -> str | None:
     parsed = urlparse(url.replace("rerun+http", "http", 1).replace("rerun+https", "https", 1))
     host, port = parsed.hostname or "127.0.0.1", parsed.port or DEFAULT_PORT
     try:
@@ -69,7 +69,7 @@ def check_sink(save: str | Path | None = None, spawn: bool = False,
                                     "use --save OUT.rrd to write a recording file instead")
     else:
         url = connect or DEFAULT_URL
-        reason = _unreachable_reason(url)
+        reason = unreachable_reason(url)
         if reason is not None:
             raise ViewerUnavailable(f"cannot connect to a Rerun viewer at {url}: {reason}; "
                                     "use --save OUT.rrd to write a recording file instead")
