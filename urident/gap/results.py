@@ -15,10 +15,12 @@ from urident.gap.scoring import Fit, Scorer
 
 
 def rms(r: np.ndarray) -> np.ndarray:
+    """(6,) RMS per joint of an (N, 6) residual [N·m]."""
     return np.sqrt(np.mean(r * r, axis=0))
 
 
 def e_n(r: np.ndarray) -> float:
+    """The paper's e_N = ‖r‖ / N of an (N, 6) residual."""
     return float(np.linalg.norm(r) / r.shape[0])
 
 

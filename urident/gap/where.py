@@ -11,13 +11,15 @@ from urident.gap.controller import controller_reference
 from urident.gap.residual import SetContext
 from urident.gap.results import Score
 
+#: The map axes where each effect's improvement is looked for first.
 PREFER_AXIS = {"stribeck": ("velocity",), "load_friction": ("load",), "thermal_drift": ("time",),
-                "position_ripple": ("angle",), "current_offset": ("velocity", "angle"),
-                "torque_constant_error": ("load",), "payload_error": ("angle",),
-                "current_delay": (), "joint_elasticity": ()}
+               "position_ripple": ("angle",), "current_offset": ("velocity", "angle"),
+               "torque_constant_error": ("load",), "payload_error": ("angle",),
+               "current_delay": (), "joint_elasticity": ()}
 
 
 def signed_load(ctx: SetContext) -> np.ndarray:
+    """(N, 6) sign(q̇)·|τ̂|: the load axis of the maps."""
     return np.sign(ctx.qd) * np.abs(ctx.tau_hat)
 
 
