@@ -17,7 +17,7 @@ import numpy as np
 import yaml
 
 from urident.errors import ConfigError, UnknownRobotError, shown
-from urident.model.parameters import N_JOINTS, N_PARAMS, PARAMS_PER_BODY, standard_from_links  # noqa: F401
+from urident.model.parameters import N_JOINTS, N_PARAMS, standard_from_links  # noqa: F401  (N_PARAMS: re-exported)
 
 ROBOTS_DIR = Path(__file__).parent / "robots"
 
