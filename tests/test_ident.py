@@ -249,8 +249,8 @@ def test_params_roundtrip_and_errors(spec, sim, tmp_path):
     np.testing.assert_allclose(predict(back, spec, rec.q[:50], rec.qd[:50], qdd[:50]),
                                predict(model, spec, rec.q[:50], rec.qd[:50], qdd[:50]))
     text = path.read_text()
-    for old, new, msg in [("format: urident-params", "format: other", "key 'format'"),
-                          ("method: ols", "method: magic", "key 'method'"),
+    for old, new, msg in [("format: urident-params", "format: other", "bad.yaml: format: "),
+                          ("method: ols", "method: magic", "bad.yaml: method: "),
                           ("robot: ur5", "robot: ur10e", "robot 'ur10e'")]:
         bad = tmp_path / "bad.yaml"
         bad.write_text(text.replace(old, new, 1))
@@ -261,9 +261,9 @@ def test_params_roundtrip_and_errors(spec, sim, tmp_path):
     k = next(i for i, ln in enumerate(lines) if ln.strip().startswith("value:"))
     lines[k] = lines[k].split(":")[0] + ": .nan"
     bad.write_text("\n".join(lines))
-    with pytest.raises(ConfigError, match=r"bad.yaml: key 'base_parameters\[0\].value' must be finite"):
+    with pytest.raises(ConfigError, match=r"bad.yaml: base_parameters\[0\].value: must be finite"):
         load_params(bad)
-    with pytest.raises(ConfigError, match="no such parameters file"):
+    with pytest.raises(ConfigError, match="parameters file not found"):
         load_params(tmp_path / "missing.yaml")
 
 
