@@ -44,7 +44,7 @@ def read_text(path: str | Path, what: str, error: type[Exception] = ConfigError)
     except FileNotFoundError:
         raise error(f"{path}: {what} not found") from None
     except IsADirectoryError:
-        raise error(f"{path}: is a directory, not a {what}") from None
+        raise error(f"{path}: is a directory, not a file ({what})") from None
     except OSError as exc:
         raise error(f"{path}: cannot read {what}: {exc.strerror or type(exc).__name__}") from None
     try:

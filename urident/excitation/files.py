@@ -136,12 +136,18 @@ def trajectory_document(robot: str, trajectory: FourierTrajectory, limits: Limit
     return doc
 
 
-def write_trajectory(path: str | Path, document: dict[str, Any], header: str = "") -> None:
-    """Write a trajectory document atomically (temp file + rename)."""
-    path = Path(path)
+def trajectory_text(document: dict[str, Any], header: str = "") -> str:
+    """The text of a trajectory file: ``header`` as comments, then the document."""
     text = yaml.safe_dump(document, sort_keys=False, default_flow_style=None, width=120)
     comment = "".join(f"# {line}\n" for line in header.splitlines()) if header else ""
-    write_text_atomic(path, comment + text, fsync=False)
+    return comment + text
+
+
+def write_trajectory(path: str | Path, document: dict[str, Any], header: str = "",
+                     overwrite: bool = True) -> None:
+    """Write a trajectory document atomically (temp file + rename; never through a symbolic
+    link; ``overwrite=False``: the file must not exist)."""
+    write_text_atomic(Path(path), trajectory_text(document, header), fsync=False, overwrite=overwrite)
 
 
 def load_trajectory(path: str | Path) -> TrajectoryFile:

@@ -25,6 +25,7 @@ import numpy as np
 import yaml
 
 from urident.errors import ConfigError, shown
+from urident.fileio import write_text_atomic
 from urident.ident.design import ModelConfig
 from urident.ident.identify import METHODS, IdentifiedModel
 from urident.ident.preprocess import PreprocessConfig, Provenance
@@ -66,8 +67,11 @@ def to_dict(m: IdentifiedModel) -> dict:
     }
 
 
-def save_params(m: IdentifiedModel, path: str | Path) -> None:
-    Path(path).write_text(yaml.safe_dump(to_dict(m), sort_keys=False, width=120))
+def save_params(m: IdentifiedModel, path: str | Path, overwrite: bool = True) -> None:
+    """Write PARAMS.yaml atomically, never through a symbolic link (``overwrite=False``: the
+    file must not exist)."""
+    write_text_atomic(path, yaml.safe_dump(to_dict(m), sort_keys=False, width=120), fsync=False,
+                      overwrite=overwrite)
 
 
 def _err(path, msg) -> ParamsFileError:

@@ -12,7 +12,9 @@ from pathlib import Path
 from typing import TextIO
 
 from .foreign import PRESETS
-from .reader import describe_dropped, load_log, parse_row_range
+from urident.cli.options import row_range
+
+from .reader import describe_dropped, load_log
 from .recording import Recording
 
 
@@ -41,7 +43,7 @@ def add_log_arguments(parser: argparse.ArgumentParser) -> None:
         dest="log_rows",
         metavar="FIRST-LAST",
         default=None,
-        type=parse_row_range,
+        type=row_range,
         help="use data rows FIRST..LAST only (1-based, inclusive, header not counted)",
     )
     group.add_argument(
