@@ -102,6 +102,7 @@ def int_range(low: int | None = None, high: int | None = None) -> Callable[[str]
         return value
 
     parse.__name__ = "integer"
+    parse.bounds = (low, high)  # type: ignore[attr-defined]
     return parse
 
 
@@ -153,6 +154,21 @@ def row_range(text: str) -> tuple[int, int]:
             from None
 
 
+def checked(parse: Callable[[str], Any]) -> Callable[[str], str]:
+    """A validator from a library parser (raising ValueError/ConfigError): the text is checked at
+    parse time and kept as given."""
+
+    def check(text: str) -> str:
+        try:
+            parse(text)
+        except (ValueError, TypeError) as exc:
+            raise argparse.ArgumentTypeError(" ".join(str(exc).split())) from None
+        return text
+
+    check.__name__ = getattr(parse, "__name__", "value")
+    return check
+
+
 def name_list(choices: Callable[[], tuple[str, ...]] | tuple[str, ...],
               none: str | None = None) -> Callable[[str], tuple[str, ...]]:
     """Comma-separated names, each one of ``choices`` (a tuple, or a function returning one so
@@ -176,6 +192,7 @@ def name_list(choices: Callable[[], tuple[str, ...]] | tuple[str, ...],
         return names
 
     parse.__name__ = "names"
+    parse.choices = choices  # type: ignore[attr-defined]
     return parse
 
 
@@ -190,6 +207,7 @@ def float_range(low: float, high: float) -> Callable[[str], float]:
         return value
 
     parse.__name__ = "number"
+    parse.bounds = (low, high)  # type: ignore[attr-defined]
     return parse
 
 

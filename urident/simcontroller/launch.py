@@ -32,11 +32,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--host", default="127.0.0.1",
                         help="loopback address to bind (one controller per address; default 127.0.0.1)")
     parser.add_argument("--version", dest="controller_version", default=None, metavar="VERSION",
+                        type=options.checked(_parse_version),
                         help="controller software version, e.g. 5.11.0 (e-Series, 500 Hz) or 3.15.8 "
                              "(CB3, 125 Hz); default: the robot file's")
     parser.add_argument("--effects", default=None, metavar="FILE",
                         help="unmodelled-effects file (urident.simcontroller.effects)")
-    parser.add_argument("--fault", action="append", default=[], metavar="SPEC", help=FAULT_HELP)
+    parser.add_argument("--fault", action="append", default=[], metavar="SPEC", help=FAULT_HELP,
+                        type=options.checked(_parse_fault))
     parser.add_argument("--seed", type=options.seed, default=0, help="seed of the measurement noise (default 0)")
     parser.add_argument("--no-realtime", action="store_true",
                         help="do not ask for real-time (SCHED_FIFO) scheduling of the controller loop")
@@ -44,6 +46,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="log every recipe and the first use of each script command on stderr")
     parser.add_argument("--initial-q", type=options.joint_vector, default=None, metavar="Q0,...,Q5",
                         help="initial joint positions [rad], comma-separated (default: a home pose)")
+
+
+def _parse_version(text: str):
+    from urident.simcontroller.controller import parse_version
+
+    return parse_version(text)
+
+
+def _parse_fault(text: str):
+    from urident.simcontroller.faults import parse_fault
+
+    return parse_fault(text)
 
 
 def build_server(args: argparse.Namespace):
