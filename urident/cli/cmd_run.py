@@ -51,6 +51,11 @@ def run(args: argparse.Namespace) -> int:
     out = None if args.check_only else options.log_output("--out", args.out, args.overwrite)
     if not args.check_only:  # the viewer itself is best effort (the live view falls back to LOG.rrd)
         options.output_path("--save", args.rerun_save, args.overwrite, suffix=".rrd")
+    from urident.excitation import load_trajectory
+    from urident.model import load_robot
+
+    load_robot(args.robot)  # input files read before connecting: a bad one contacts nothing
+    load_trajectory(args.trajectory)
     request = RunRequest(robot=args.robot, host=args.host, trajectory=args.trajectory,
                          out=out or Path("unused.csv"), config=load_experiment_config(args.config),
                          repeat=args.repeat, check_only=args.check_only, assume_yes=args.yes,
