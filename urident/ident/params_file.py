@@ -30,7 +30,7 @@ from urident.ident.design import ModelConfig
 from urident.ident.identify import METHODS, IdentifiedModel
 from urident.ident.preprocess import PreprocessConfig, Provenance
 from urident.model.parameters import parameter_names
-from urident.yamlio import Fields, load_yaml
+from urident.yamlio import Fields, key_path, load_yaml
 
 FORMAT = "urident-params"
 VERSION = 1
@@ -138,9 +138,8 @@ def load_params(path: str | Path) -> IdentifiedModel:
         where = f"data[{k}]"
         f.mapping(d, where)
         f.keys(d, {"file", "rows", "sha256", "samples_used"}, where)
-        rows = None if d.get("rows") is None else tuple(f.array(d, "rows", where, 2).astype(int))
-        used = (0, 0) if d.get("samples_used") is None else tuple(
-            f.array(d, "samples_used", where, 2).astype(int))
+        rows = None if d.get("rows") is None else _index_pair(f, d, "rows", where)
+        used = (0, 0) if d.get("samples_used") is None else _index_pair(f, d, "samples_used", where)
         sha = d.get("sha256")
         prov.append(Provenance(str(d.get("file")), rows, None if sha is None else str(sha), used))
     fit = f.mapping(data.get("fit") or {}, "fit")
@@ -156,18 +155,31 @@ def load_params(path: str | Path) -> IdentifiedModel:
         train_e_n=_statistic(f, fit, "e_n", "fit"))
 
 
+def _index_pair(f: Fields, mapping: dict, key: str, where: str) -> tuple[int, int]:
+    pair = f.array(mapping, key, where, 2)
+    if not np.all((pair == np.round(pair)) & (np.abs(pair) < 2**53)):
+        raise f.fail(key_path(where, key), "must be two whole numbers")
+    return int(pair[0]), int(pair[1])
+
+
 def _rms(f: Fields, fit: dict) -> np.ndarray:
     values = f.get(fit, "rms_nm", list, "fit")
     if len(values) != 6 or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
         raise f.fail("fit.rms_nm", "must be a list of 6 numbers")
-    return np.array(values, dtype=float)
+    try:
+        return np.array(values, dtype=float)
+    except OverflowError:
+        raise f.fail("fit.rms_nm", "is out of range") from None
 
 
 def _statistic(f: Fields, mapping: dict, key: str, where: str) -> float:
     """A reported statistic: a number, NaN when not available (None or .nan)."""
     if mapping.get(key) is None:
         return np.nan
-    return float(f.get(mapping, key, (int, float), where))
+    try:
+        return float(f.get(mapping, key, (int, float), where))
+    except OverflowError:
+        raise f.fail(key_path(where, key), "is out of range") from None
 
 
 def _build(f: Fields, where: str, make):
@@ -176,7 +188,7 @@ def _build(f: Fields, where: str, make):
         return make()
     except ParamsFileError:
         raise
-    except (ConfigError, TypeError, ValueError) as exc:
+    except (ConfigError, TypeError, ValueError, OverflowError) as exc:
         message = str(exc)
         prefix = f"{f.label}: {where}: "
         raise f.fail(where, message[len(prefix):] if message.startswith(prefix) else message) from None

@@ -79,6 +79,13 @@ def read_sidecar(path: str | Path) -> dict[str, Any]:
     return out
 
 
+def _finite(value: float) -> bool:
+    try:
+        return math.isfinite(value)
+    except OverflowError:  # an integer beyond float range
+        return False
+
+
 def _check_values(path: Path, data: dict[str, Any]) -> None:
     fmt = data.get("format")
     if fmt is not None and fmt != FORMAT_NAME:
@@ -89,7 +96,7 @@ def _check_values(path: Path, data: dict[str, Any]) -> None:
             f"{path}: status: is {shown(status)!r}, expected one of {', '.join(STATUSES)}"
         )
     rate = data.get("rate_hz")
-    if rate is not None and not (math.isfinite(rate) and 0 < rate <= 1e6):
+    if rate is not None and not (_finite(rate) and 0 < rate <= 1e6):
         raise LogFormatError(f"{path}: rate_hz: must be a positive rate, got {rate}")
     for key in ("late_cycles", "duplicates_skipped", "n_samples", "format_version"):
         value = data.get(key)
@@ -100,7 +107,7 @@ def _check_values(path: Path, data: dict[str, Any]) -> None:
         if value is None:
             continue
         ok = len(value) == 6 and all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+            isinstance(v, (int, float)) and not isinstance(v, bool) and _finite(v)
             for v in value
         )
         if not ok:
