@@ -7,6 +7,7 @@ import argparse
 import importlib
 import math
 import string
+from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -173,3 +174,18 @@ def test_excite_bounds_the_harmonics_by_the_controller_rate(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--harmonics 100" in err and "125 Hz" in err
     assert not out.exists()
+
+
+def test_a_file_excite_writes_passes_check_trajectory(tmp_path, capsys):
+    """Also with a robot file given by path, which the trajectory file then refers to relatively."""
+    robot = tmp_path / "robots" / "my_ur5.yaml"
+    robot.parent.mkdir()
+    robot.write_text((Path(__file__).resolve().parent.parent / "urident/model/robots/ur5.yaml").read_text())
+    out = tmp_path / "traj" / "e.yaml"
+    out.parent.mkdir()
+    argv = ["excite", "--robot", str(robot), "--out", str(out), "--harmonics", "2", "--duration", "4",
+            "--starts", "1", "--iterations", "3", "--quiet"]
+    assert main(argv) == 0, capsys.readouterr().err
+    assert "robot: ../robots/my_ur5.yaml" in out.read_text()
+    assert main(["check-trajectory", str(out)]) == 0
+    assert main(argv) == 2 and "--out" in capsys.readouterr().err  # no overwrite without --overwrite

@@ -51,6 +51,8 @@ def run(args: argparse.Namespace) -> int:
     out = None if args.check_only else options.log_output("--out", args.out, args.overwrite)
     if not args.check_only:  # the viewer itself is best effort (the live view falls back to LOG.rrd)
         options.output_path("--save", args.rerun_save, args.overwrite, suffix=".rrd")
+        if args.record_periods:
+            options.output_path("--record-periods", out.with_suffix(".periods.npy"), args.overwrite)
     from urident.excitation import load_trajectory
     from urident.model import load_robot
 
