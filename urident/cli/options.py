@@ -1,7 +1,8 @@
 """Command-line conventions shared by every subcommand, in one place.
 
 * :class:`ArgumentParser`: a bad flag value, a missing or unknown option ends in ONE line
-  ``urident: error: argument --harmonics: must be an integer >= 2, not '1'`` and exit 2.
+  ``urident: error: argument --harmonics: must be an integer from 2 to 100, not '1' (see ...)``,
+  exit 2.
 * Validators for ``type=``: they run at parse time, so a bad value never reaches the
   (possibly slow, possibly moving) command, and argparse prefixes the flag's own name.
 * The Rerun options, spelled one way on every command that can show results:
