@@ -7,7 +7,6 @@ import argparse
 import copy
 import json
 import sys
-from pathlib import Path
 
 from urident.cli import options
 

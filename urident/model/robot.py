@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from urident.errors import ConfigError, UnknownRobotError, shown
+from urident.errors import UnknownRobotError, shown
 from urident.yamlio import Fields, load_yaml
 
 ROBOTS_DIR = Path(__file__).parent / "robots"
