@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 from pathlib import Path
 from typing import Any, Callable
 
@@ -163,7 +164,8 @@ def checked(parse: Callable[[str], Any]) -> Callable[[str], str]:
         try:
             parse(text)
         except (ValueError, TypeError) as exc:
-            raise argparse.ArgumentTypeError(" ".join(str(exc).split())) from None
+            message = re.sub(r"^--[\w-]+ ('[^']*': )", r"\1", " ".join(str(exc).split()))  # argparse names the flag
+            raise argparse.ArgumentTypeError(message) from None
         return text
 
     check.__name__ = getattr(parse, "__name__", "value")
