@@ -244,6 +244,10 @@ def _parse_capsules(reader: "_Reader", items: Any, where: str) -> list[Capsule]:
 class _Reader(Fields):
     """:class:`~urident.yamlio.Fields` with read-only vectors, as the spec's arrays are."""
 
+    def __init__(self, path: Path):
+        super().__init__(path)
+        self.path = path
+
     def vector(self, mapping: dict, key: str, where: str, size: int) -> np.ndarray:
         array = self.array(mapping, key, where, (size,))
         array.setflags(write=False)
