@@ -90,7 +90,7 @@ def main() -> None:
         with SimControllerProcess(host=HOST, robot="ur5e", initial_q=start):
             subprocess.run([sys.executable, "-m", "urident.cli.main", "run", "--robot", "ur5e", "--host", HOST,
                             "--trajectory", str(traj), "--out", str(log), "--config", str(config), "--yes",
-                            "--save-rrd", str(tmp / "run.rrd"), "--record-periods", "--repeat", str(repeat)],
+                            "--save", str(tmp / "run.rrd"), "--record-periods", "--repeat", str(repeat)],
                            check=True, capture_output=True, text=True)
         periods = np.load(log.with_suffix(".periods.npy"))
         ours = summary(periods)

@@ -127,7 +127,7 @@ def test_file_and_preset_resolution(tmp_path):
     ("description: x\n", r"FX: effects: missing key"),
     ("", r"FX: effects file is empty"),
     ("effects: [\n", r"FX:\d+: malformed YAML"),
-    ("effects: []\neffects: []\n", r"FX:2: malformed YAML \(duplicate key 'effects'\)"),
+    ("effects: []\neffects: []\n", r"FX:2: effects: duplicate key"),
 ])
 def test_malformed_effects_files_give_one_line_errors(text, message):
     with pytest.raises(ConfigError, match=message) as info:

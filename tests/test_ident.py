@@ -15,8 +15,7 @@ from urident.ident.estimate_consistent import is_physically_consistent
 from urident.ident.friction import dahl_state
 from urident.ident.preprocess import Prepared, rest_trim_range
 from urident.ident.synthetic import random_multisine, synthetic_recording
-from urident.ident.torque import (estimate_drive_gains, parse_drive_gains, payload_params,
-                                  payload_torque)
+from urident.ident.torque import estimate_drive_gains, payload_params, payload_torque
 from urident.model import joint_torques, load_robot
 
 
@@ -79,11 +78,15 @@ def test_preprocess_rejects_nan_and_wrong_robot(spec):
         preprocess(replace(rec, robot="ur10e"), spec)
 
 
-def test_drive_gains_option_and_errors(spec):
-    np.testing.assert_allclose(parse_drive_gains("1,2,3,4,5,6"), [1, 2, 3, 4, 5, 6])
+def test_drive_gains_option_and_errors(spec, capsys):
+    from urident.cli.main import main
+    from urident.cli.options import drive_gains
+
+    np.testing.assert_allclose(drive_gains("1,2,3,4,5,6"), [1, 2, 3, 4, 5, 6])
     for bad in ("1,2,3", "1,2,3,4,5,x", "1,2,3,4,5,-6"):
-        with pytest.raises(ConfigError, match="--drive-gains"):
-            parse_drive_gains(bad)
+        assert main(["identify", "x.csv", "--robot", "ur5", "--out", "p.yaml", "--drive-gains", bad]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("urident: error: argument --drive-gains: ") and err.count("\n") == 1
 
 
 def test_drive_gain_estimation_from_payload_runs():
@@ -249,8 +252,8 @@ def test_params_roundtrip_and_errors(spec, sim, tmp_path):
     np.testing.assert_allclose(predict(back, spec, rec.q[:50], rec.qd[:50], qdd[:50]),
                                predict(model, spec, rec.q[:50], rec.qd[:50], qdd[:50]))
     text = path.read_text()
-    for old, new, msg in [("format: urident-params", "format: other", "key 'format'"),
-                          ("method: ols", "method: magic", "key 'method'"),
+    for old, new, msg in [("format: urident-params", "format: other", "bad.yaml: format: "),
+                          ("method: ols", "method: magic", "bad.yaml: method: "),
                           ("robot: ur5", "robot: ur10e", "robot 'ur10e'")]:
         bad = tmp_path / "bad.yaml"
         bad.write_text(text.replace(old, new, 1))
@@ -261,9 +264,9 @@ def test_params_roundtrip_and_errors(spec, sim, tmp_path):
     k = next(i for i, ln in enumerate(lines) if ln.strip().startswith("value:"))
     lines[k] = lines[k].split(":")[0] + ": .nan"
     bad.write_text("\n".join(lines))
-    with pytest.raises(ConfigError, match=r"bad.yaml: key 'base_parameters\[0\].value' must be finite"):
+    with pytest.raises(ConfigError, match=r"bad.yaml: base_parameters\[0\].value: must be finite"):
         load_params(bad)
-    with pytest.raises(ConfigError, match="no such parameters file"):
+    with pytest.raises(ConfigError, match="parameters file not found"):
         load_params(tmp_path / "missing.yaml")
 
 
@@ -404,15 +407,15 @@ def test_cli_presets_and_overrides(spec, tmp_path, capsys):
     # --model best is the same preset; explicit options override it (fixed distance: no CV)
     assert main(["identify", str(tmp_path / "id.csv"), "--robot", "ur5", "--out", str(out),
                  "--model", "best", "--weighting", "none", "--dahl-rad", "1e-3", "--full",
-                 "--friction-extra", "load"]) == 0
+                 "--friction-extra", "load", "--overwrite"]) == 0
     assert "selected by" not in capsys.readouterr().out
     m = load_params(out)
     assert (m.weighting, m.model.dahl_rad, m.model.reduced, m.model.extras) == ("none", 1e-3, False, ("load",))
     # the paper preset is the default configuration
     assert main(["identify", str(tmp_path / "id.csv"), "--robot", "ur5", "--out", str(out),
-                 "--preset", "paper"]) == 0
+                 "--preset", "paper", "--overwrite"]) == 0
     m = load_params(out)
     assert m.model == ModelConfig() and m.weighting == "none"
     assert main(["identify", str(tmp_path / "id.csv"), "--robot", "ur5", "--out", str(out),
-                 "--dahl-rad", "auto"]) == 2
+                 "--dahl-rad", "auto", "--overwrite"]) == 2
     assert "needs a Dahl state" in capsys.readouterr().err

@@ -102,19 +102,19 @@ def test_own_log_sidecar_robot_mismatch_and_unknown(tmp_path):
         load_log(path, robot="ur10e")
     side = sidecar_path(path)
     side.write_text(side.read_text().replace("robot: ur5e", "robot: ur42"))
-    with pytest.raises(LogFormatError, match=r"unknown robot 'ur42' \(.*own\.yaml: sidecar key"):
+    with pytest.raises(LogFormatError, match=r"unknown robot 'ur42' \(.*own\.yaml: robot"):
         load_log(path, known_robots=["ur5e"])
 
 
 @pytest.mark.parametrize(
     "text, match",
     [
-        ("status: done\n", "sidecar key 'status' is 'done'"),
-        ("rate_hz: fast\n", "sidecar key 'rate_hz' must be int or float"),
-        ("rate_hz: -5\n", "'rate_hz' must be a positive rate"),
+        ("status: done\n", "own.yaml: status: is 'done'"),
+        ("rate_hz: fast\n", "own.yaml: rate_hz: must be int or float"),
+        ("rate_hz: -5\n", "rate_hz: must be a positive rate"),
         ("[1, 2]\n", "must be a YAML mapping"),
-        ("robot: [unclosed\n", r"own\.yaml:2: sidecar is not valid YAML"),
-        ("gear_ratios: [1, 2]\n", "'gear_ratios' must be a list of 6 finite numbers"),
+        ("robot: [unclosed\n", r"own\.yaml:2: malformed YAML"),
+        ("gear_ratios: [1, 2]\n", "gear_ratios: must be a list of 6 finite numbers"),
         ("", "sidecar is empty"),
     ],
 )

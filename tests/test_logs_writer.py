@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import yaml
 
-from urident.errors import LogFormatError
+from urident.errors import LogFormatError, OutputError
 from urident.logs import LOG_FIELDS, LogWriter, field_columns, load_log, sidecar_path
 
 META = {
@@ -160,7 +160,10 @@ def test_close_with_status_and_extra(tmp_path):
 def test_refuses_to_overwrite_and_bad_rows(tmp_path):
     path = tmp_path / "o.csv"
     LogWriter(path, fields=LOG_FIELDS[:4], metadata={"robot": "ur5"}).close()
-    with pytest.raises(LogFormatError, match="exists"):
+    with pytest.raises(OutputError, match="o.yaml: exists"):
+        LogWriter(path, fields=LOG_FIELDS[:4])
+    with pytest.raises(OutputError, match="o.csv: exists"):  # the CSV alone is enough to refuse
+        path.with_suffix(".yaml").unlink()
         LogWriter(path, fields=LOG_FIELDS[:4])
     with LogWriter(path, fields=LOG_FIELDS[:4], metadata={"robot": "ur5"}, overwrite=True) as log:
         with pytest.raises(ValueError, match="19 columns"):

@@ -77,7 +77,7 @@ def test_complete_run_records_every_controller_sample(files):
     rrd = files["dir"] / "complete.rrd"
     with SimControllerProcess(host="127.0.0.51", robot="ur5e", initial_q=NEAR_START):
         # Live streaming on: it must not cost a single controller sample.
-        r = run_cli("127.0.0.51", "ur5e", files["ur5e"], out, files["config"], "--yes", "--save-rrd", str(rrd))
+        r = run_cli("127.0.0.51", "ur5e", files["ur5e"], out, files["config"], "--yes", "--save", str(rrd))
         at_rest, runtime = controller_at_rest("127.0.0.51")
     assert r.returncode == 0, r.stderr
     assert "completed:" in r.stdout

@@ -212,9 +212,9 @@ def test_cli_simulate(spec, tmp_path, monkeypatch, capsys):
     assert np.max(np.abs(log2.current - log2.target_moment / spec.drive_gains)) < 0.1
 
     for argv, message in [
-        (["--effects", "realistik"], "no such effects file or preset"),
-        (["--robot", "ur10e"], "trajectory is for robot 'ur5'"),
-        ([], "log exists"),
+        (["--effects", "realistik", "--overwrite"], "no such effects file or preset"),
+        (["--robot", "ur10e", "--overwrite"], "trajectory is for robot 'ur5'"),
+        ([], "exists; pass --overwrite to replace it"),
     ]:
         code = main(["simulate", "--trajectory", str(traj_file), "--out", str(out), *argv])
         err = capsys.readouterr().err

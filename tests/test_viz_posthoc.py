@@ -208,7 +208,7 @@ def test_acceleration_estimates():
 def test_rerun_cli_options_for_other_commands(tmp_path, monkeypatch):
     import argparse
 
-    from urident.viz.cli_args import add_rerun_arguments, check_rerun_args, open_recording_from_args
+    from urident.cli.options import add_rerun_arguments, check_rerun_args, open_recording_from_args
 
     parser = argparse.ArgumentParser()
     add_rerun_arguments(parser)

@@ -143,7 +143,7 @@ def run_demo(root: Path = Path("logs"), quick: bool = False, seed: int = 0,
             step(f"urident run: {kind} trajectory {trajectory.name} at 500 Hz (live view -> {kind}_live.rrd)")
             call(["run", "--robot", ROBOT, "--host", host, "--trajectory", str(trajectory),
                   "--out", str(logs[kind]), "--config", str(config), "--yes",
-                  "--save-rrd", str(directory / f"{kind}_live.rrd")])
+                  "--save", str(directory / f"{kind}_live.rrd")])
         step("stopping the simulated controller")
     if sim.returncode not in (0, None):
         say(f"warning: the simulated controller exited with code {sim.returncode}")

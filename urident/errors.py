@@ -50,3 +50,8 @@ def shown(value: object, limit: int = 60) -> str:
     text shortened (user input such as a YAML key can hold newlines)."""
     text = str(value).encode("unicode_escape").decode("ascii")
     return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
+class OutputError(UridentError):
+    """An output path cannot be written safely: it exists (without ``--overwrite``), is a
+    symbolic link or a directory, or its directory is missing or not writable."""

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 
+from urident.cli.options import positive_float
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
@@ -14,7 +16,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "every controller tick. Prints the tightest margin per constraint and joint; exits "
                     "non-zero naming the joint, time and margin of a violation.")
     p.add_argument("file", help="trajectory file (YAML)")
-    p.add_argument("--rate", type=_positive_float, default=None,
+    p.add_argument("--rate", type=positive_float, default=None,
                    help="check rate [Hz] (default: the robot's controller rate)")
     p.add_argument("--json", action="store_true", help="print the report as one JSON object")
     p.set_defaults(func=run)
@@ -44,10 +46,3 @@ def run(args: argparse.Namespace) -> int:
         print("  ok" if report.ok else f"  {len(report.violations)} violation(s)")
     report.raise_if_unsafe(str(args.file))
     return 0
-
-
-def _positive_float(text: str) -> float:
-    value = float(text)
-    if not 0 < value < float("inf"):
-        raise argparse.ArgumentTypeError(f"must be a positive number, not {text}")
-    return value

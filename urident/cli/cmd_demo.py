@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from urident.cli import options
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
@@ -15,12 +17,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "Everything is written under logs/demo-<timestamp>/.")
     p.add_argument("--out-root", type=Path, default=Path("logs"), help="parent directory (default logs/)")
     p.add_argument("--quick", action="store_true", help="short generated trajectories (about a minute)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the simulated controller's noise")
+    p.add_argument("--seed", type=options.seed, default=0, help="seed of the simulated controller's noise")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from urident.demo import run_demo
 
+    options.output_path("--out-root", args.out_root, overwrite=False, directory=True)
     run_demo(args.out_root, quick=args.quick, seed=args.seed)
     return 0

@@ -7,7 +7,8 @@ import argparse
 import copy
 import json
 import sys
-from pathlib import Path
+
+from urident.cli import options
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -30,29 +31,29 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="baseline parameters (PARAMS.yaml of 'urident identify') instead of "
                         "identifying them on the --ident logs")
     p.add_argument("--json-out", metavar="FILE", default=None, help="write the full report as JSON")
-    p.add_argument("--ident-rows", metavar="FIRST-LAST", default=None,
+    options.add_overwrite_argument(p, "an existing JSON report or .rrd file")
+    p.add_argument("--ident-rows", metavar="FIRST-LAST", type=options.row_range, default=None,
                    help="rows of the identification logs (overrides --rows for them)")
-    p.add_argument("--valid-rows", metavar="FIRST-LAST", default=None,
+    p.add_argument("--valid-rows", metavar="FIRST-LAST", type=options.row_range, default=None,
                    help="rows of the validation logs (overrides --rows for them)")
-    p.add_argument("--drive-gains", metavar="G1,...,G6", default=None,
+    p.add_argument("--drive-gains", metavar="G1,...,G6", type=options.drive_gains, default=None,
                    help="N·m per A of motor current (default: the parameters file's or robot file's)")
-    p.add_argument("--effects", metavar="NAMES", default=None,
+    p.add_argument("--effects", metavar="NAMES", type=options.name_list(_catalogue), default=None,
                    help="comma-separated subset of the catalogue to test (default: all; names as in "
                         "'urident simulate --list-effects')")
-    p.add_argument("--min-shrink", dest="min_shrink_pct", type=float, default=None, metavar="PCT",
+    p.add_argument("--min-shrink", dest="min_shrink_pct", type=options.percentage, default=None, metavar="PCT",
                    help="a finding must shrink its joint's validation RMS by at least this "
                         "(default 3; see docs/gap-calibration.md)")
-    p.add_argument("--cv-min-noise", dest="cv_min_noise_ratio", type=float, default=0.5,
+    p.add_argument("--cv-min-noise", dest="cv_min_noise_ratio", type=options.nonnegative_float,
+                   default=0.5,
                    metavar="RATIO",
                    help="a finding fitted inside the validation logs (CV mode) must correct its "
                         "joint by an RMS of at least RATIO x the joint's white-noise torque "
                         "(default 0.5; 0 turns the floor off)")
-    p.add_argument("--max-effects", type=int, default=3, metavar="N",
+    p.add_argument("--max-effects", type=options.int_range(1, 20), default=3, metavar="N",
                    help="at most this many effects (stepwise selection, default 3)")
-    p.add_argument("--seed", type=int, default=0, help="bootstrap seed (default 0)")
-    sink = p.add_mutually_exclusive_group()
-    sink.add_argument("--rerun", action="store_true", help="send residual maps and comparison to a Rerun viewer")
-    sink.add_argument("--save", metavar="OUT.rrd", default=None, help="write them to a Rerun recording file")
+    p.add_argument("--seed", type=options.seed, default=0, help="bootstrap seed (default 0)")
+    options.add_rerun_arguments(p, "residual maps and comparison")
     from urident.logs import add_log_arguments
 
     add_log_arguments(p)
@@ -60,30 +61,25 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _load_all(paths, args, rows_text, robot):
-    from urident.logs import load_log_from_args, parse_row_range
+    from urident.logs import load_log_from_args
 
     a = args
     if rows_text is not None:
         a = copy.copy(args)
-        a.log_rows = parse_row_range(rows_text)
+        a.log_rows = rows_text
     return [load_log_from_args(path, a, robot=robot) for path in paths]
 
 
 def run(args: argparse.Namespace) -> int:
-    from urident.errors import ConfigError
+    import numpy as np
+
     from urident.gap import GapConfig, diagnose, format_report
     from urident.gap.candidates import EFFECTS
     from urident.model import load_robot
 
-    if args.save is not None or args.rerun:
-        from urident.viz.recording import check_sink
-
-        check_sink(args.save, spawn=args.rerun and args.save is None)
-    if args.json_out is not None and not Path(args.json_out).parent.is_dir():
-        raise ConfigError(f"--json-out {args.json_out}: directory does not exist")
-    effects = EFFECTS
-    if args.effects:
-        effects = tuple(e.strip() for e in args.effects.split(",") if e.strip())
+    options.check_rerun_args(args)
+    options.output_path("--json-out", args.json_out, args.overwrite)
+    effects = args.effects or EFFECTS
     floor = {} if args.min_shrink_pct is None else {"min_shrink_pct": args.min_shrink_pct}
     config = GapConfig(effects=effects, **floor, cv_min_noise_ratio=args.cv_min_noise_ratio,
                        max_effects=args.max_effects, seed=args.seed)
@@ -93,23 +89,21 @@ def run(args: argparse.Namespace) -> int:
         from urident.ident import load_params
 
         params = load_params(args.params)
-    drive_gains = None
-    if args.drive_gains:
-        from urident.ident import parse_drive_gains
-
-        drive_gains = parse_drive_gains(args.drive_gains)
+    drive_gains = None if args.drive_gains is None else np.array(args.drive_gains)
     ident = _load_all(args.ident, args, args.ident_rows, spec.name)
     valid = _load_all(args.valid, args, args.valid_rows, spec.name)
     result = diagnose(ident, valid, spec, params=params, drive_gains=drive_gains, config=config)
     print(format_report(result))
     if args.json_out:
-        with open(args.json_out, "w", encoding="utf-8") as fh:
-            json.dump(result.as_dict(), fh, indent=1, allow_nan=False, default=_json_default)
+        from urident.fileio import write_text_atomic
+
+        text = json.dumps(result.as_dict(), indent=1, allow_nan=False, default=_json_default)
+        write_text_atomic(args.json_out, text, fsync=False, overwrite=args.overwrite)
         print(f"\nreport written to {args.json_out}")
-    if args.save is not None or args.rerun:
-        _to_rerun(result, spec, args.save, args.rerun and args.save is None)
-        print(f"residual maps {'saved to ' + args.save if args.save else 'sent to the viewer'}",
-              file=sys.stdout)
+    rec = options.open_recording_from_args(args, "urident_gap")
+    if rec is not None:
+        _to_rerun(result, spec, rec)
+        print(f"residual maps {options.rerun_destination(args)}", file=sys.stdout)
     return 0
 
 
@@ -123,13 +117,12 @@ def _json_default(x):
     raise TypeError(f"not JSON serialisable: {type(x).__name__}")
 
 
-def _to_rerun(result, spec, save, spawn) -> None:
+def _to_rerun(result, spec, rec) -> None:
     """Baseline and final comparison on the validation logs, residual maps as tables."""
     from urident.gap.report import maps_markdown
-    from urident.viz.recording import close_recording, open_recording
+    from urident.viz.recording import close_recording
     from urident.viz.torque_views import log_joint_series, log_metrics, log_text, log_torque_comparison
 
-    rec = open_recording("urident_gap", save=save, spawn=spawn)
     ctx = result.valid
     t = ctx.t - ctx.t[0]
     tau = ctx.tau
@@ -144,3 +137,9 @@ def _to_rerun(result, spec, save, spawn) -> None:
     log_metrics(rec, metrics, prefix="gap/metrics")
     log_text(rec, "gap/report", maps_markdown(result))
     close_recording(rec)
+
+
+def _catalogue() -> tuple[str, ...]:
+    from urident.gap.candidates import EFFECTS
+
+    return tuple(EFFECTS)

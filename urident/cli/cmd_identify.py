@@ -6,6 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from urident.cli import options
+
 
 PRESET_HELP = ("named configuration: 'paper' (the paper's method: full base set, tanh friction, plain "
                "least squares) or 'real-robot' (urident's best on real UR logs: reduced base set, "
@@ -25,49 +27,51 @@ def add_model_arguments(p: argparse.ArgumentParser) -> None:
                    help="the paper's reduced model (33 base parameters) instead of the full one (52)")
     g.add_argument("--full", dest="reduced", action="store_false",
                    help="the full base set (52 parameters; default unless a preset says otherwise)")
-    g.add_argument("--friction-eps", type=float, default=None, metavar="E",
+    g.add_argument("--friction-eps", type=options.positive_float, default=None, metavar="E",
                    help="tanh(qd/E) slope of the Coulomb friction [rad/s] (default 0.01, the paper's)")
     g.add_argument("--coulomb", choices=("tanh", "dahl", "hold"), default=None,
                    help="Coulomb friction model: tanh (paper, default); hold (tanh in motion, keeps the "
                         "last motion's friction at standstill); dahl (presliding state driven by the "
                         "displacement, see --dahl-source)")
-    g.add_argument("--hold-velocity", type=float, default=None, metavar="V",
+    g.add_argument("--hold-velocity", type=options.positive_float, default=None, metavar="V",
                    help="hold model: |qd| [rad/s] needed to reverse the friction state (default 3e-4, "
                         "about 5x the standstill velocity noise of the UR10e logs)")
-    g.add_argument("--dahl-rad", default=None, metavar="D",
+    g.add_argument("--dahl-rad", type=_dahl_rad, default=None, metavar="D",
                    help="Dahl presliding distance [rad] (default 0.01), or 'auto': chosen from "
                         "5e-5..5e-4 rad by 5-fold blocked cross-validation on the identification data")
     g.add_argument("--dahl-source", choices=("position", "velocity"), default=None,
                    help="displacement driving the Dahl state: position (logged q, default) or "
                         "velocity (integral of the logged qd, independent of how finely q is stored)")
-    g.add_argument("--friction-extra", default=None, metavar="LIST",
+    g.add_argument("--friction-extra", type=options.name_list(_extra_features, none="none"),
+                   default=None, metavar="LIST",
                    help="extra friction features, comma-separated: offset, stribeck, dahl, load "
                         "(load-dependent Coulomb |tau_nominal|*z), sqrtvisc (sign(qd)*sqrt|qd|); "
                         "'none' for no extras")
-    g.add_argument("--stribeck-vs", type=float, default=None, metavar="V",
+    g.add_argument("--stribeck-vs", type=options.positive_float, default=None, metavar="V",
                    help="Stribeck velocity [rad/s] (default 0.05)")
     g.add_argument("--weighting", choices=("none", "joint"), default=None,
                    help="none: the paper's plain least squares (default); joint: rows divided by each "
                         "joint's residual std from a first fit")
-    g.add_argument("--regularisation", type=float, default=None, metavar="L",
+    g.add_argument("--regularisation", type=options.nonnegative_float, default=None, metavar="L",
                    help="weight of the prior towards the robot file's parameters in the consistent "
                         "method (default 1e-3)")
 
 
 def add_preprocess_arguments(p: argparse.ArgumentParser, trim_default: bool = True) -> None:
     g = p.add_argument_group("preprocessing")
-    g.add_argument("--filter-hz", type=float, default=None, metavar="F",
+    g.add_argument("--filter-hz", type=options.positive_float, default=None, metavar="F",
                    help="corner frequency of the acceleration filter [Hz] (default 10)")
-    g.add_argument("--torque-filter-hz", type=float, default=None, metavar="F",
+    g.add_argument("--torque-filter-hz", type=options.positive_float, default=None, metavar="F",
                    help="zero-phase low-pass of the torques [Hz] (default: off)")
-    g.add_argument("--decimate", type=int, default=None, metavar="K", help="keep every K-th sample")
+    g.add_argument("--decimate", type=options.int_range(1, 1000), default=None, metavar="K",
+                   help="keep every K-th sample")
     g.add_argument("--trim-rest", dest="trim_rest", action="store_true", default=None,
                    help="drop leading/trailing samples at rest" + (" (default)" if trim_default else ""))
     g.add_argument("--no-trim-rest", dest="trim_rest", action="store_false",
                    help="keep leading/trailing samples at rest" + ("" if trim_default else " (default)"))
-    g.add_argument("--rest-threshold", type=float, default=None, metavar="V",
+    g.add_argument("--rest-threshold", type=options.nonnegative_float, default=None, metavar="V",
                    help="all |qd| below V [rad/s] counts as rest (default 0.001)")
-    g.add_argument("--drive-gains", default=None, metavar="G1,...,G6",
+    g.add_argument("--drive-gains", type=options.drive_gains, default=None, metavar="G1,...,G6",
                    help="joint-side drive gains i_G*k [N·m/A] (default: the robot file's)")
 
 
@@ -111,12 +115,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--report", metavar="FILE", default=None, help="also write the comparison table here")
     p.add_argument("--png", metavar="DIR", default=None,
                    help="write fit plots (measured vs predicted, base parameters) as PNG here")
+    options.add_overwrite_argument(p, "existing parameters, URDF, report and plot files")
     add_model_arguments(p)
     add_preprocess_arguments(p, trim_default=True)
     add_log_arguments(p)
-    from urident.viz.cli_args import add_rerun_arguments
-
-    add_rerun_arguments(p)
+    options.add_rerun_arguments(p, "fit")
     p.set_defaults(func=run)
 
 
@@ -144,22 +147,17 @@ def model_config(args: argparse.Namespace):
         if value is not None:
             changes[attr] = value
     if args.dahl_rad is not None:
-        if str(args.dahl_rad).strip().lower() == "auto":
+        if args.dahl_rad == "auto":
             select = True
         else:
-            try:
-                changes["dahl_rad"] = float(args.dahl_rad)
-            except ValueError:
-                raise ConfigError(f"--dahl-rad {args.dahl_rad!r}: expected a distance [rad] or 'auto'") from None
+            changes["dahl_rad"] = args.dahl_rad
             select = False
     if args.friction_extra is not None:
-        text = args.friction_extra.strip()
-        changes["extras"] = () if text.lower() == "none" else tuple(
-            x.strip() for x in text.split(",") if x.strip())
+        changes["extras"] = args.friction_extra
     model = replace(base, **changes)
     uses_dahl = model.coulomb == "dahl" or "dahl" in model.extras
     if select and not uses_dahl:
-        if str(args.dahl_rad or "").strip().lower() == "auto":
+        if args.dahl_rad == "auto":
             raise ConfigError("--dahl-rad auto needs a Dahl state: --coulomb dahl or --friction-extra dahl")
         select = False   # the preset's δ selection is moot once the Dahl state is overridden
     return model, weighting, select
@@ -178,9 +176,21 @@ def run(args: argparse.Namespace) -> int:
     from urident.logs import load_log_from_args
     from urident.model import load_robot
 
-    from urident.viz.cli_args import check_rerun_args
-
-    check_rerun_args(args)  # before the heavy work: a missing viewer fails at once
+    methods = ("ols", "bounded", "consistent") if args.method == "all" else (args.method,)
+    if args.urdf and "consistent" not in methods:
+        raise ConfigError("--urdf needs physically consistent parameters: use --method consistent or all")
+    # every output checked before the heavy work: none exists (unless --overwrite), none is a link
+    out = Path(args.out)
+    primary = "consistent" if args.method == "all" else args.method
+    options.output_path("--out", out, args.overwrite)
+    for m in methods:
+        if m != primary:
+            options.output_path("--out", sibling(out, m), args.overwrite)
+    options.output_path("--urdf", args.urdf, args.overwrite)
+    options.output_path("--report", args.report, args.overwrite)
+    options.output_dir_files("--png", args.png, [f"fit_{m}.png" for m in methods] + ["base_parameters.png"],
+                             args.overwrite)
+    options.check_rerun_args(args)  # a missing viewer or a bad --save fails at once
     spec = load_robot(args.robot)
     model, weighting, select = model_config(args)
     config = preprocess_config(args)
@@ -196,18 +206,13 @@ def run(args: argparse.Namespace) -> int:
         cv_text = (f"dahl_rad selected by {CV_FOLDS}-fold blocked CV on the identification data: "
                    f"{model.dahl_rad:g} rad (mean held-out RMS [N·m] per distance: "
                    + ", ".join(f"{s.model.dahl_rad:g}: {s.mean_rms_nm:.3f}" for s in scores) + ")")
-    methods = ("ols", "bounded", "consistent") if args.method == "all" else (args.method,)
-    if args.urdf and "consistent" not in methods:
-        raise ConfigError("--urdf needs physically consistent parameters: use --method consistent or all")
     reg = DEFAULT_REGULARISATION if args.regularisation is None else args.regularisation
     models = identify_all(spec, data, methods, model, weighting, reg, config)
-    out = Path(args.out)
-    primary = "consistent" if args.method == "all" else args.method
-    save_params(models[primary], out)
+    save_params(models[primary], out, overwrite=args.overwrite)
     written = [str(out)]
     for m in methods:
         if m != primary:
-            save_params(models[m], sibling(out, m))
+            save_params(models[m], sibling(out, m), overwrite=args.overwrite)
             written.append(str(sibling(out, m)))
     text = comparison_report(models)
     if preset_name(args):
@@ -216,21 +221,28 @@ def run(args: argparse.Namespace) -> int:
         text = cv_text + "\n" + text
     print(text)
     if args.report:
-        Path(args.report).write_text(text + "\n")
+        from urident.fileio import write_text_atomic
+
+        write_text_atomic(args.report, text + "\n", overwrite=args.overwrite)
     if args.urdf:
         from urident.ident.urdf import write_urdf
 
-        write_urdf(spec, models["consistent"].standard, args.urdf)
+        write_urdf(spec, models["consistent"].standard, args.urdf, overwrite=args.overwrite)
         written.append(args.urdf)
     if args.png:
+        from urident.fileio import atomic_output
         from urident.ident import validate
         from urident.viz.plots import plot_base_parameters, plot_torques
 
         png = Path(args.png)
         png.mkdir(parents=True, exist_ok=True)
         for m, mod in models.items():
-            written.append(str(plot_torques(validate(mod, spec, data), png / f"fit_{m}.png")))
-        written.append(str(plot_base_parameters(models, png / "base_parameters.png")))
+            with atomic_output(png / f"fit_{m}.png", args.overwrite, "--png") as tmp:
+                plot_torques(validate(mod, spec, data), tmp)
+            written.append(str(png / f"fit_{m}.png"))
+        with atomic_output(png / "base_parameters.png", args.overwrite, "--png") as tmp:
+            plot_base_parameters(models, tmp)
+        written.append(str(png / "base_parameters.png"))
     written += _to_rerun(args, spec, models, data, text)
     print("wrote " + ", ".join(written), file=sys.stderr)
     return 0
@@ -238,9 +250,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _to_rerun(args: argparse.Namespace, spec, models, data, report: str) -> list[str]:
     """The fit on the identification data (measured vs predicted per method) and the report."""
-    from urident.viz.cli_args import open_recording_from_args
-
-    rec = open_recording_from_args(args, "urident_identify")
+    rec = options.open_recording_from_args(args, "urident_identify")
     if rec is None:
         return []
     from urident.ident import validate
@@ -253,3 +263,19 @@ def _to_rerun(args: argparse.Namespace, spec, models, data, report: str) -> list
     log_text(rec, "identify/report", "```\n" + report + "\n```")
     close_recording(rec)
     return [args.rerun_save] if args.rerun_save else []
+
+
+def _dahl_rad(text: str):
+    """``--dahl-rad``: a positive distance [rad] or 'auto'."""
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        return options.positive_float(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"must be a positive distance [rad] or 'auto', not {text!r}") from None
+
+
+def _extra_features() -> tuple[str, ...]:
+    from urident.ident.design import EXTRA_FEATURES
+
+    return tuple(EXTRA_FEATURES)

@@ -6,6 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from urident.cli import options
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
@@ -19,11 +21,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--trajectory", required=True, type=Path, help="trajectory file (urident excite)")
     p.add_argument("--out", type=Path, help="log to write (LOG.csv + LOG.yaml); required unless --check-only")
     p.add_argument("--config", type=Path, help="experiment configuration YAML (servo, approach, monitors)")
-    p.add_argument("--repeat", type=int, default=1, help="run the trajectory N times back to back")
+    options.add_overwrite_argument(p, "an existing log (and .rrd file)")
+    p.add_argument("--repeat", type=options.int_range(1, 1000), default=1,
+                   help="run the trajectory N times back to back")
     p.add_argument("--yes", action="store_true", help="do not ask before moving")
     p.add_argument("--check-only", action="store_true", help="do every check, move nothing")
-    p.add_argument("--rerun", action="store_true", help="stream to a Rerun viewer while running")
-    p.add_argument("--save-rrd", type=Path, help="stream to this .rrd file while running")
+    options.add_rerun_arguments(p, "run live")
     p.add_argument("--record-periods", action="store_true",
                    help="also save every control period [s] to LOG.periods.npy (timing analysis)")
     p.add_argument("--params", type=Path,
@@ -44,15 +47,23 @@ def run(args: argparse.Namespace) -> int:
 
     if args.out is None and not args.check_only:
         raise ConfigError("--out LOG is required (or pass --check-only)")
-    out = args.out
-    if out is not None and out.suffix != ".csv":
-        out = out.with_suffix(".csv")
+    # outputs checked before connecting: nothing moves if the log could not be written
+    out = None if args.check_only else options.log_output("--out", args.out, args.overwrite)
+    if not args.check_only:  # the viewer itself is best effort (the live view falls back to LOG.rrd)
+        options.output_path("--save", args.rerun_save, args.overwrite, suffix=".rrd")
+        if args.record_periods:
+            options.output_path("--record-periods", out.with_suffix(".periods.npy"), args.overwrite)
+    from urident.excitation import load_trajectory
+    from urident.model import load_robot
+
+    load_robot(args.robot)  # input files read before connecting: a bad one contacts nothing
+    load_trajectory(args.trajectory)
     request = RunRequest(robot=args.robot, host=args.host, trajectory=args.trajectory,
                          out=out or Path("unused.csv"), config=load_experiment_config(args.config),
                          repeat=args.repeat, check_only=args.check_only, assume_yes=args.yes,
                          record_periods=args.record_periods)
     live = None
-    if (args.rerun or args.save_rrd) and not args.check_only:
+    if options.rerun_sink(args) is not None and not args.check_only:
         live = _live_streamer(args)
     result = run_session(request, confirm=_confirm, live=live)
     if result.status == "checked":
@@ -72,5 +83,5 @@ def _live_streamer(args: argparse.Namespace):
         from urident.viz.prediction import load_prediction_params
 
         params = load_prediction_params(args.params, spec)
-    return LiveStreamer(spec, params, save=args.save_rrd, spawn=bool(args.rerun and not args.save_rrd),
+    return LiveStreamer(spec, params, **options.rerun_sink(args),
                         fallback_save=args.out.with_suffix(".rrd") if args.out else None)

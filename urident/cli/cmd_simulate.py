@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from urident.cli import options
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
@@ -18,8 +20,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--out", metavar="LOG", help="log to write (LOG.csv + LOG.yaml)")
     p.add_argument("--effects", metavar="FILE|PRESET", default=None,
                    help="unmodelled-effects file or preset (realistic, none); default: none")
-    p.add_argument("--seed", type=int, default=0, help="sensor-noise seed (default 0)")
-    p.add_argument("--rate", type=float, default=None, metavar="HZ",
+    p.add_argument("--seed", type=options.seed, default=0, help="sensor-noise seed (default 0)")
+    p.add_argument("--rate", type=options.float_range(0, 10000), default=None, metavar="HZ",
                    help="controller rate (default: the robot's, 125 Hz CB3, 500 Hz e-Series)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing log")
     p.add_argument("--list-effects", action="store_true",
@@ -59,6 +61,7 @@ def run(args: argparse.Namespace) -> int:
     from urident.model import load_robot
     from urident.simcontroller.offline import simulate
 
+    options.log_output("--out", args.out, args.overwrite)  # before the simulation
     started = time.perf_counter()
     trajectory = _load_trajectory(args.trajectory)
     file_spec = getattr(trajectory, "spec", None)

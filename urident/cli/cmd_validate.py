@@ -7,6 +7,8 @@ import json
 import sys
 from pathlib import Path
 
+from urident.cli import options
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     from urident.cli.cmd_identify import add_preprocess_arguments
@@ -24,11 +26,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--robot", default=None, help="robot (default: the parameters file's)")
     p.add_argument("--json-out", metavar="FILE", default=None, help="write the metrics as JSON")
     p.add_argument("--png", metavar="DIR", default=None, help="write measured-vs-predicted plots here")
+    options.add_overwrite_argument(p, "existing JSON and plot files")
     add_preprocess_arguments(p, trim_default=False)
     add_log_arguments(p)
-    from urident.viz.cli_args import add_rerun_arguments
-
-    add_rerun_arguments(p)
+    options.add_rerun_arguments(p, "comparison")
     p.set_defaults(func=run)
 
 
@@ -40,9 +41,9 @@ def run(args: argparse.Namespace) -> int:
     from urident.logs import load_log_from_args
     from urident.model import load_robot
 
-    from urident.viz.cli_args import check_rerun_args
-
-    check_rerun_args(args)  # before the heavy work: a missing viewer fails at once
+    options.output_path("--json-out", args.json_out, args.overwrite)
+    options.output_dir_files("--png", args.png, [_png_name(p) for p in args.params], args.overwrite)
+    options.check_rerun_args(args)  # before the heavy work: a missing viewer fails at once
     models = [(path, load_params(path)) for path in args.params]
     robot = args.robot or models[0][1].robot
     spec = load_robot(robot)
@@ -68,25 +69,28 @@ def run(args: argparse.Namespace) -> int:
         payload = dict(results[0][1].as_dict(), params=str(results[0][0]))
         if len(results) > 1:
             payload["results"] = [dict(r.as_dict(), params=str(p)) for p, r in results]
-        Path(args.json_out).write_text(json.dumps(payload, indent=2) + "\n")
+        from urident.fileio import write_text_atomic
+
+        write_text_atomic(args.json_out, json.dumps(payload, indent=2) + "\n", overwrite=args.overwrite)
     _to_rerun(args, spec, results)
     if args.png:
         from urident.viz.plots import plot_torques
 
         out = Path(args.png)
         out.mkdir(parents=True, exist_ok=True)
+        from urident.fileio import atomic_output
+
         for k, (path, r) in enumerate(results):
-            png = plot_torques(r, out / f"validation_{Path(path).stem}.png",
-                               title=f"{Path(path).name} ({r.method}): e_N = {r.e_n:.4f}, "
-                                     f"mean RMS {r.mean_rms_nm:.2f} N·m")
+            png = out / _png_name(path)
+            with atomic_output(png, args.overwrite, "--png") as tmp:
+                plot_torques(r, tmp, title=f"{Path(path).name} ({r.method}): e_N = {r.e_n:.4f}, "
+                                           f"mean RMS {r.mean_rms_nm:.2f} N·m")
             print(f"wrote {png}", file=sys.stderr)
     return 0
 
 
 def _to_rerun(args: argparse.Namespace, spec, results) -> None:
-    from urident.viz.cli_args import open_recording_from_args
-
-    rec = open_recording_from_args(args, "urident_validate")
+    rec = options.open_recording_from_args(args, "urident_validate")
     if rec is None:
         return
     from urident.viz import close_recording, log_torque_results
@@ -94,5 +98,8 @@ def _to_rerun(args: argparse.Namespace, spec, results) -> None:
     log_torque_results(rec, spec.joint_names, [(Path(p).stem.replace(".", "_"), r) for p, r in results],
                        prefix="validate", title="Validation: measured vs predicted torque")
     close_recording(rec)
-    print(f"Rerun recording {'saved to ' + args.rerun_save if args.rerun_save else 'sent to the viewer'}",
-          file=sys.stderr)
+    print(f"Rerun recording {options.rerun_destination(args)}", file=sys.stderr)
+
+
+def _png_name(params_path) -> str:
+    return f"validation_{Path(params_path).stem}.png"

@@ -6,14 +6,16 @@ from __future__ import annotations
 import argparse
 import sys
 
+from urident.cli import options
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "view", help="show a log in Rerun: measured vs predicted torque, robot in 3-D",
         description="Replay a log in the Rerun viewer: one plot per joint of measured (drive gains "
                     "x current) vs predicted torque and their residual, e_N and per-joint RMS, "
-                    "tracking error, and the robot moving in 3-D. Opens a viewer unless --save "
-                    "or --connect is given.")
+                    "tracking error, and the robot moving in 3-D. Spawns a viewer unless --save "
+                    "OUT.rrd or --rerun URL is given.")
     p.add_argument("log", metavar="LOG", help="log CSV (urident, ur_rtde or foreign format)")
     p.add_argument("--robot", default=None,
                    help="robot name or file (default: the robot named in the log's sidecar)")
@@ -21,14 +23,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="parameters to predict with: a PARAMS.yaml from 'urident identify', or 78 "
                         "standard / base parameters (.npy, .txt, .csv, .json, .yaml); default: the "
                         "robot file's nominal parameters")
-    sink = p.add_mutually_exclusive_group()
-    sink.add_argument("--save", metavar="OUT.rrd", default=None,
-                      help="write a Rerun recording file instead of opening a viewer (headless)")
-    sink.add_argument("--connect", metavar="URL", nargs="?", const="", default=None,
-                      help="send to a running viewer (default rerun+http://127.0.0.1:9876/proxy)")
-    p.add_argument("--pose-rate", dest="pose_rate_hz", type=float, default=30.0, metavar="HZ",
-                   help="rate of the 3-D robot poses (default 30 Hz; 0 = every sample)")
-    p.add_argument("--cutoff", dest="cutoff_hz", type=float, default=10.0, metavar="HZ",
+    options.add_rerun_arguments(p, "replay (default: spawn a viewer)")
+    options.add_overwrite_argument(p, "an existing .rrd file")
+    p.add_argument("--pose-rate", dest="pose_rate_hz", type=options.nonnegative_float, default=30.0,
+                   metavar="HZ", help="rate of the 3-D robot poses (default 30 Hz; 0 = every sample)")
+    p.add_argument("--cutoff", dest="cutoff_hz", type=options.positive_float, default=10.0, metavar="HZ",
                    help="low-pass cutoff of the zero-phase acceleration estimate (default 10 Hz)")
     from urident.logs import add_log_arguments
 
@@ -42,13 +41,10 @@ def run(args: argparse.Namespace) -> int:
     from urident.model import load_robot
     from urident.viz.blueprint import torque_blueprint
     from urident.viz.prediction import load_prediction_params, recording_predictor
-    from urident.viz.recording import check_sink, close_recording, open_recording
+    from urident.viz.recording import close_recording
     from urident.viz.replay import log_recording_comparison
 
-    spawn = args.save is None and args.connect is None
-    check_sink(args.save, spawn, args.connect)  # fail before the (slow) loading
-    if not args.cutoff_hz > 0:
-        raise ConfigError(f"--cutoff must be positive, got {args.cutoff_hz}")
+    options.check_rerun_args(args, default_spawn=True)  # fail before the (slow) loading
     recording = load_log_from_args(args.log, args, robot=args.robot)
     robot = args.robot or recording.robot
     if robot is None:
@@ -58,15 +54,15 @@ def run(args: argparse.Namespace) -> int:
     predictor = recording_predictor(spec, params, cutoff_hz=args.cutoff_hz)
     tau_predicted = predictor(recording)  # before opening a viewer: errors come first
 
-    rec = open_recording("urident_view", save=args.save, spawn=spawn, connect=args.connect,
-                         blueprint=torque_blueprint(joint_names=spec.joint_names))
+    rec = options.open_recording_from_args(args, "urident_view", default_spawn=True,
+                                           blueprint=torque_blueprint(joint_names=spec.joint_names))
     metrics = log_recording_comparison(
         rec, spec, recording, tau_predicted=tau_predicted,
         title=f"{spec.name}: measured vs {'identified' if params is not None else 'nominal'} model",
         pose_rate_hz=args.pose_rate_hz or None)
     close_recording(rec)
     rms = ", ".join(f"{metrics[f'rms/{j}']:.3g}" for j in spec.joint_names)
-    where = f"saved {args.save}" if args.save else "sent to the viewer"
+    where = options.rerun_destination(args)
     print(f"{len(recording)} samples, e_N = {metrics['e_N']:.4f}, RMS residual [N m] = [{rms}]; {where}",
           file=sys.stdout)
     return 0

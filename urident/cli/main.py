@@ -8,6 +8,7 @@ import os
 import sys
 
 from urident import __version__
+from urident.cli.options import ArgumentParser
 from urident.errors import UridentError
 
 # Subcommand modules, in the order `urident --help` lists them (operator's path first).
@@ -27,7 +28,7 @@ COMMANDS = (
 
 
 def get_argument_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog="urident",
         description="Dynamic parameter identification for Universal Robots arms.",
     )
@@ -47,7 +48,10 @@ def get_argument_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     parser = get_argument_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, --version, or a bad option (one line printed, code 2)
+        return exc.code if isinstance(exc.code, int) else 2
     if not getattr(args, "func", None):
         parser.print_help()
         return 1

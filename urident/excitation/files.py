@@ -31,8 +31,8 @@ Format (``format_version: 1``)::
     criteria: {...}                     # optional: cond_theta, cond_lambda, logdet_lambda, ...
     check: {...}                        # optional: rate_hz, min_distance_m, min_distance_pair
 
-Unknown keys are rejected; every error is a one-line :class:`ConfigError` naming the file and key
-(and the line for YAML syntax errors).
+Read with the strict reader :mod:`urident.yamlio`: unknown and duplicate keys are rejected; every
+error is one line ``FILE: key.path: message``.
 """
 
 from __future__ import annotations
@@ -48,12 +48,12 @@ import yaml
 from urident.fileio import write_text_atomic
 
 from urident import __version__
-from urident.errors import ConfigError, shown
+from urident.errors import ConfigError
 from urident.excitation.constraints import Limits, Margins
 from urident.excitation.fourier import FourierTrajectory
 from urident.model.robot import RobotSpec, load_robot
+from urident.yamlio import Fields, load_yaml
 
-_SafeLoader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)  # libyaml when available: ~20x faster
 FORMAT_NAME = "urident-excitation-trajectory"
 FORMAT_VERSION = 1
 MAX_HARMONICS = 100
@@ -136,33 +136,25 @@ def trajectory_document(robot: str, trajectory: FourierTrajectory, limits: Limit
     return doc
 
 
-def write_trajectory(path: str | Path, document: dict[str, Any], header: str = "") -> None:
-    """Write a trajectory document atomically (temp file + rename)."""
-    path = Path(path)
+def trajectory_text(document: dict[str, Any], header: str = "") -> str:
+    """The text of a trajectory file: ``header`` as comments, then the document."""
     text = yaml.safe_dump(document, sort_keys=False, default_flow_style=None, width=120)
     comment = "".join(f"# {line}\n" for line in header.splitlines()) if header else ""
-    write_text_atomic(path, comment + text, fsync=False)
+    return comment + text
+
+
+def write_trajectory(path: str | Path, document: dict[str, Any], header: str = "",
+                     overwrite: bool = True) -> None:
+    """Write a trajectory document atomically (temp file + rename; never through a symbolic
+    link; ``overwrite=False``: the file must not exist)."""
+    write_text_atomic(Path(path), trajectory_text(document, header), fsync=False, overwrite=overwrite)
 
 
 def load_trajectory(path: str | Path) -> TrajectoryFile:
-    """Read and validate a trajectory file. Raises :class:`ConfigError` (one line, naming the file
-    and key, or the line of a YAML syntax error) for anything malformed."""
+    """Read and validate a trajectory file. Raises :class:`ConfigError` (one line
+    ``FILE: key.path: message``, with the line of a YAML syntax error or duplicate key)."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ConfigError(f"{path}: trajectory file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"{path}: cannot read trajectory file ({type(exc).__name__})") from None
-    try:
-        data = yaml.load(text, Loader=_SafeLoader)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f":{mark.line + 1}" if mark is not None else ""
-        problem = str(getattr(exc, "problem", None) or type(exc).__name__).replace("\n", " ")
-        raise ConfigError(f"{path}{where}: malformed YAML ({problem})") from None
-    except (RecursionError, ValueError, OverflowError) as exc:
-        raise ConfigError(f"{path}: malformed YAML ({type(exc).__name__})") from None
+    data = load_yaml(path, "trajectory file")
     try:
         return parse_trajectory_document(data, path)
     except ConfigError:
@@ -174,43 +166,37 @@ def load_trajectory(path: str | Path) -> TrajectoryFile:
 
 
 def parse_trajectory_document(data: Any, path: Path | None = None) -> TrajectoryFile:
-    r = _Reader(path)
-    if not isinstance(data, dict):
-        raise ConfigError(f"{r.name}: expected a mapping at the top level")
-    r.keys(data, _TOP_KEYS, "")
-    for key in _REQUIRED_TOP:
-        if key not in data:
-            raise ConfigError(f"{r.name}: missing key '{key}'")
+    r = Fields(path if path is not None else "<trajectory>")
+    r.mapping(data, "", "a mapping at the top level")
+    r.keys(data, _TOP_KEYS, "", required=_REQUIRED_TOP)
     if data["format"] != FORMAT_NAME:
-        raise ConfigError(f"{r.name}: key 'format' must be '{FORMAT_NAME}'")
-    version = r.integer(data, "format_version", "")
+        raise r.fail("format", f"must be '{FORMAT_NAME}'")
+    version = r.integer(data, "format_version")
     if version != FORMAT_VERSION:
-        raise ConfigError(f"{r.name}: key 'format_version' {version} is not supported (expected {FORMAT_VERSION})")
+        raise r.fail("format_version", f"{version} is not supported (expected {FORMAT_VERSION})")
     urident_version = data.get("urident_version")
     if "urident_version" in data and (not isinstance(urident_version, (str, int, float))
                                       or isinstance(urident_version, bool)):
-        raise ConfigError(f"{r.name}: key 'urident_version' must be a string")
+        raise r.fail("urident_version", "must be a string")
 
-    robot_ref = r.get(data, "robot", str, "")
+    robot_ref = r.get(data, "robot", str)
     robot_path = Path(robot_ref)
     if path is not None and robot_ref.endswith((".yaml", ".yml")) and not robot_path.is_absolute():
         robot_ref = str(path.parent / robot_path)
     try:
         spec = load_robot(robot_ref)
     except ConfigError as exc:
-        raise ConfigError(f"{r.name}: key 'robot': {exc}") from None
+        raise r.fail("robot", str(exc)) from None
 
-    traj = r.get(data, "trajectory", dict, "")
+    traj = r.get(data, "trajectory", dict)
     r.keys(traj, _TRAJ_KEYS, "trajectory")
-    harmonics = r.integer(traj, "harmonics", "trajectory")
-    if not 1 <= harmonics <= MAX_HARMONICS:
-        raise ConfigError(f"{r.name}: key 'trajectory.harmonics' must be between 1 and {MAX_HARMONICS}")
+    harmonics = r.integer(traj, "harmonics", "trajectory", minimum=1, maximum=MAX_HARMONICS)
     duration = r.number(traj, "duration_s", "trajectory", positive=True)
     omega_raw = traj.get("base_frequency_rad_s")
     if isinstance(omega_raw, list):
         omega = r.array(traj, "base_frequency_rad_s", "trajectory", (6,))
         if np.any(omega <= 0):
-            raise ConfigError(f"{r.name}: key 'trajectory.base_frequency_rad_s' must be positive")
+            raise r.fail("trajectory.base_frequency_rad_s", "must be positive")
     else:
         omega = np.full(6, r.number(traj, "base_frequency_rad_s", "trajectory", positive=True))
     q0 = r.array(traj, "q0_rad", "trajectory", (6,))
@@ -220,96 +206,33 @@ def parse_trajectory_document(data: Any, path: Path | None = None) -> Trajectory
     if "q_start_rad" in traj:
         q_start = r.array(traj, "q_start_rad", "trajectory", (6,))
         if not np.allclose(q_start, trajectory.q_start, rtol=0, atol=1e-6):
-            raise ConfigError(f"{r.name}: key 'trajectory.q_start_rad' does not match q(0) of the "
-                              f"coefficients")
+            raise r.fail("trajectory.q_start_rad", "does not match q(0) of the coefficients")
 
-    lim = r.get(data, "limits", dict, "")
-    r.keys(lim, _MARGIN_KEYS | set(_ABS_LIMIT_KEYS), "limits")
-    values = {}
-    for key in sorted(_MARGIN_KEYS):
-        if key not in lim:
-            raise ConfigError(f"{r.name}: missing key 'limits.{key}'")
-        values[key] = r.number(lim, key, "limits")
+    lim = r.get(data, "limits", dict)
+    r.keys(lim, _MARGIN_KEYS | set(_ABS_LIMIT_KEYS), "limits", required=sorted(_MARGIN_KEYS))
+    values = {key: r.number(lim, key, "limits") for key in sorted(_MARGIN_KEYS)}
     try:
         margins = Margins(**values)
         limits = Limits.from_robot(spec, margins)
     except ValueError as exc:
-        raise ConfigError(f"{r.name}: key 'limits': {exc}") from None
+        raise r.fail("limits", str(exc)) from None
     for key, attr in _ABS_LIMIT_KEYS.items():
         if key in lim:
             stored = r.array(lim, key, "limits", (6,))
             if not np.allclose(stored, getattr(limits, attr), rtol=1e-9, atol=1e-9):
-                raise ConfigError(f"{r.name}: key 'limits.{key}' does not match robot {spec.name}'s "
-                                  f"limits with the file's margins")
+                raise r.fail(f"limits.{key}", f"does not match robot {spec.name}'s limits with the "
+                                              f"file's margins")
 
     sections = {}
     for key, allowed in (("optimization", _OPT_KEYS), ("criteria", _CRITERIA_KEYS), ("check", _CHECK_KEYS)):
-        section = data.get(key, {})
-        if not isinstance(section, dict):
-            raise ConfigError(f"{r.name}: key '{key}' must be a mapping")
+        section = r.mapping(data.get(key, {}), key)
         r.keys(section, allowed, key)
         for k, v in section.items():
             if not isinstance(v, (str, int, float, bool)) or not _finite_if_number(v):
-                raise ConfigError(f"{r.name}: key '{key}.{k}' must be a finite number, string or boolean")
+                raise r.fail(f"{key}.{k}", "must be a finite number, string or boolean")
         sections[key] = dict(section)
     return TrajectoryFile(path, spec.name, spec, trajectory, margins, limits,
                           None if urident_version is None else str(urident_version), **sections)
-
-
-class _Reader:
-    def __init__(self, path: Path | None):
-        self.name = str(path) if path is not None else "<trajectory>"
-
-    @staticmethod
-    def _key(where: str, key: str) -> str:
-        return f"{where}.{key}" if where else key
-
-    def keys(self, mapping: dict, allowed: set[str], where: str) -> None:
-        unknown = sorted(str(k) for k in mapping if not isinstance(k, str) or k not in allowed)
-        if unknown:
-            raise ConfigError(f"{self.name}: unknown key '{shown(self._key(where, unknown[0]))}' "
-                              f"(allowed: {', '.join(sorted(allowed))})")
-
-    def get(self, mapping: dict, key: str, kind: Any, where: str) -> Any:
-        if key not in mapping:
-            raise ConfigError(f"{self.name}: missing key '{self._key(where, key)}'")
-        value = mapping[key]
-        if not isinstance(value, kind) or isinstance(value, bool):
-            raise ConfigError(f"{self.name}: key '{self._key(where, key)}' has the wrong type "
-                              f"({type(value).__name__})")
-        return value
-
-    def integer(self, mapping: dict, key: str, where: str) -> int:
-        return int(self.get(mapping, key, int, where))
-
-    def number(self, mapping: dict, key: str, where: str, positive: bool = False) -> float:
-        name = self._key(where, key)
-        try:
-            value = float(self.get(mapping, key, (int, float), where))
-        except OverflowError:
-            raise ConfigError(f"{self.name}: key '{name}' is out of range") from None
-        if not math.isfinite(value):
-            raise ConfigError(f"{self.name}: key '{name}' must be finite")
-        if positive and value <= 0:
-            raise ConfigError(f"{self.name}: key '{name}' must be positive, not {value}")
-        return value
-
-    def array(self, mapping: dict, key: str, where: str, shape: tuple[int, ...]) -> np.ndarray:
-        name = self._key(where, key)
-        value = self.get(mapping, key, list, where)
-        described = "x".join(map(str, shape))
-        if not _is_numeric_nest(value, len(shape)):
-            raise ConfigError(f"{self.name}: key '{name}' must be a {described} list of numbers")
-        try:
-            array = np.array(value, dtype=float)
-        except (TypeError, ValueError, OverflowError):
-            raise ConfigError(f"{self.name}: key '{name}' must be a {described} list of numbers") from None
-        if array.shape != shape:
-            raise ConfigError(f"{self.name}: key '{name}' must have shape {described}, "
-                              f"not {'x'.join(map(str, array.shape))}")
-        if not np.all(np.isfinite(array)):
-            raise ConfigError(f"{self.name}: key '{name}' must hold finite numbers")
-        return array
 
 
 def _finite_if_number(value: Any) -> bool:
@@ -319,12 +242,6 @@ def _finite_if_number(value: Any) -> bool:
         return math.isfinite(float(value))
     except OverflowError:
         return False
-
-
-def _is_numeric_nest(value: Any, depth: int) -> bool:
-    if depth == 0:
-        return isinstance(value, (int, float)) and not isinstance(value, bool)
-    return isinstance(value, list) and all(_is_numeric_nest(v, depth - 1) for v in value)
 
 
 def _floats(values: np.ndarray) -> list[float]:

@@ -20,13 +20,13 @@ from urident.ident.params_file import ParamsFileError, load_params, save_params
 from urident.ident.presets import PRESETS, PresetChoice, resolve_preset
 from urident.ident.preprocess import (PreprocessConfig, Prepared, accelerations, concatenate,
                                       preprocess, zero_phase_lowpass)
-from urident.ident.torque import estimate_drive_gains, parse_drive_gains, torque_from_current
+from urident.ident.torque import estimate_drive_gains, torque_from_current
 from urident.ident.validate import ValidationResult, metrics, validate
 
 __all__ = [
     "METHODS", "PRESETS", "Estimate", "PresetChoice", "resolve_preset", "IdentifiedModel", "ModelConfig", "ParamsFileError", "PreprocessConfig",
     "Prepared", "ValidationResult", "accelerations", "concatenate", "design_matrix",
-    "estimate_drive_gains", "identify", "identify_all", "load_params", "metrics", "parse_drive_gains",
+    "estimate_drive_gains", "identify", "identify_all", "load_params", "metrics",
     "predict", "predict_prepared", "prepare", "preprocess", "save_params", "torque_from_current",
     "validate", "zero_phase_lowpass",
 ]

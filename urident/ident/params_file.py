@@ -25,10 +25,12 @@ import numpy as np
 import yaml
 
 from urident.errors import ConfigError, shown
+from urident.fileio import write_text_atomic
 from urident.ident.design import ModelConfig
 from urident.ident.identify import METHODS, IdentifiedModel
 from urident.ident.preprocess import PreprocessConfig, Provenance
 from urident.model.parameters import N_PARAMS, parameter_names
+from urident.yamlio import Fields, key_path, load_yaml
 
 FORMAT = "urident-params"
 VERSION = 1
@@ -65,114 +67,128 @@ def to_dict(m: IdentifiedModel) -> dict:
     }
 
 
-def save_params(m: IdentifiedModel, path: str | Path) -> None:
-    Path(path).write_text(yaml.safe_dump(to_dict(m), sort_keys=False, width=120))
+def save_params(m: IdentifiedModel, path: str | Path, overwrite: bool = True) -> None:
+    """Write PARAMS.yaml atomically, never through a symbolic link (``overwrite=False``: the
+    file must not exist)."""
+    write_text_atomic(path, yaml.safe_dump(to_dict(m), sort_keys=False, width=120), fsync=False,
+                      overwrite=overwrite)
 
 
 def _err(path, msg) -> ParamsFileError:
     return ParamsFileError(f"{path}: {msg}")
 
 
-def _numbers(path, key, value, n=None) -> np.ndarray:
-    try:
-        arr = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise _err(path, f"key '{key}' must hold numbers") from None
-    if arr.ndim != 1 or (n is not None and arr.shape != (n,)) or not np.all(np.isfinite(arr)):
-        raise _err(path, f"key '{key}' must be a list of {n or 'finite'} finite numbers")
-    return arr
-
-
 def load_params(path: str | Path) -> IdentifiedModel:
     """Read a parameters file; ParamsFileError (one line, naming the file and key) on any defect."""
     path = Path(path)
-    try:
-        data = yaml.safe_load(path.read_text())
-    except FileNotFoundError:
-        raise _err(path, "no such parameters file") from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f":{mark.line + 1}" if mark is not None else ""
-        raise ParamsFileError(f"{path}{where}: malformed YAML") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise _err(path, f"cannot read ({exc})") from None
+    data = load_yaml(path, "parameters file", ParamsFileError)
+    if data is None:
+        raise _err(path, "parameters file is empty")
     if not isinstance(data, dict):
         raise _err(path, "expected a mapping at the top level")
-    unknown = sorted(set(map(str, data)) - _TOP)
-    if unknown:
-        raise _err(path, f"unknown key '{shown(unknown[0])}'")
-    missing = sorted(_REQUIRED - set(data))
-    if missing:
-        raise _err(path, f"missing key '{missing[0]}'")
+    f = Fields(path, ParamsFileError)
+    f.keys(data, _TOP, "", required=sorted(_REQUIRED))
     if data["format"] != FORMAT:
-        raise _err(path, f"key 'format' is {data['format']!r}, expected {FORMAT!r}")
+        raise f.fail("format", f"is {shown(data['format'])!r}, expected {FORMAT!r}")
     if data.get("version", VERSION) != VERSION:
-        raise _err(path, f"key 'version' {data.get('version')!r} not supported (expected {VERSION})")
+        raise f.fail("version", f"{shown(data.get('version'))!r} not supported (expected {VERSION})")
     if not isinstance(data["robot"], str):
-        raise _err(path, "key 'robot' must be a robot name")
+        raise f.fail("robot", "must be a robot name")
     if data["method"] not in METHODS:
-        raise _err(path, f"key 'method' must be one of {', '.join(METHODS)}")
-    if not isinstance(data["model"], dict):
-        raise _err(path, "key 'model' must be a mapping")
-    try:
-        model = ModelConfig.from_dict(data["model"], f"{path}: key 'model'")
-    except TypeError as exc:
-        raise _err(path, f"key 'model': {exc}") from None
-    except ConfigError as exc:
-        raise ParamsFileError(str(exc) if str(exc).startswith(str(path)) else f"{path}: key 'model': {exc}") from None
-    pre = data.get("preprocess") or {}
-    if not isinstance(pre, dict):
-        raise _err(path, "key 'preprocess' must be a mapping")
-    try:
-        pre_unknown = sorted(set(pre) - {f.name for f in fields(PreprocessConfig)})
-        if pre_unknown:
-            raise _err(path, f"unknown key 'preprocess.{shown(pre_unknown[0])}'")
-        preprocess = PreprocessConfig(**pre)
-    except ConfigError as exc:
-        raise ParamsFileError(str(exc) if str(exc).startswith(str(path)) else f"{path}: key 'preprocess': {exc}") from None
-    gains = _numbers(path, "drive_gains", data["drive_gains"], 6)
+        raise f.fail("method", f"must be one of {', '.join(METHODS)}")
+    if not isinstance(data.get("weighting", "none"), str):
+        raise f.fail("weighting", "must be text")
+    f.mapping(data["model"], "model")
+    f.keys(data["model"], ModelConfig.__dataclass_fields__, "model")
+    model = _build(f, "model", lambda: ModelConfig.from_dict(data["model"], f"{path}: model"))
+    pre = f.mapping(data.get("preprocess") or {}, "preprocess")
+    f.keys(pre, {x.name for x in fields(PreprocessConfig)}, "preprocess")
+    preprocess = _build(f, "preprocess", lambda: PreprocessConfig(**pre))
+    gains = f.array(data, "drive_gains", "", 6)
+    if np.any(gains <= 0):
+        raise f.fail("drive_gains", "must be positive [N·m/A]")
     items = data["base_parameters"]
     if not isinstance(items, list) or not items:
-        raise _err(path, "key 'base_parameters' must be a non-empty list")
+        raise f.fail("base_parameters", "must be a non-empty list")
     names, expr, values, sigma = [], [], [], []
     for k, item in enumerate(items):
-        if not isinstance(item, dict) or "name" not in item or "value" not in item:
-            raise _err(path, f"key 'base_parameters[{k}]' needs name and value")
-        try:
-            v = float(item["value"])
-            s = float(item.get("sigma", np.nan) if item.get("sigma") is not None else np.nan)
-        except (TypeError, ValueError):
-            raise _err(path, f"key 'base_parameters[{k}].value' must be a number") from None
-        if not np.isfinite(v):
-            raise _err(path, f"key 'base_parameters[{k}].value' must be finite (got {item['value']})")
+        where = f"base_parameters[{k}]"
+        f.mapping(item, where)
+        f.keys(item, {"name", "expression", "value", "sigma", "rel_sigma_pct"}, where,
+               required=("name", "value"))
+        values.append(f.number(item, "value", where))
+        sigma.append(_statistic(f, item, "sigma", where))
         names.append(str(item["name"]))
         expr.append(str(item.get("expression", item["name"])))
-        values.append(v)
-        sigma.append(s)
     standard = None
     if data.get("standard_parameters") is not None:
         std = data["standard_parameters"]
         if not isinstance(std, list) or len(std) != N_PARAMS:
-            raise _err(path, f"key 'standard_parameters' must list {N_PARAMS} parameters")
-        try:
-            standard = np.array([float(it["value"]) for it in std])
-        except (TypeError, ValueError, KeyError):
-            raise _err(path, "key 'standard_parameters' entries need a numeric value") from None
-        if not np.all(np.isfinite(standard)):
-            raise _err(path, "key 'standard_parameters' must be finite")
+            raise f.fail("standard_parameters", f"must list {N_PARAMS} parameters")
+        for k, item in enumerate(std):
+            f.mapping(item, f"standard_parameters[{k}]")
+            f.keys(item, {"name", "value"}, f"standard_parameters[{k}]", required=("value",))
+        standard = np.array([f.number(item, "value", f"standard_parameters[{k}]")
+                             for k, item in enumerate(std)])
     prov = []
-    for k, d in enumerate(data.get("data") or []):
-        if not isinstance(d, dict):
-            raise _err(path, f"key 'data[{k}]' must be a mapping")
-        rows = d.get("rows")
-        prov.append(Provenance(str(d.get("file")), None if rows is None else tuple(rows),
-                               d.get("sha256"), tuple(d.get("samples_used") or (0, 0))))
-    fit = data.get("fit") or {}
+    provenance = data.get("data") or []
+    if not isinstance(provenance, list):
+        raise f.fail("data", "must be a list")
+    for k, d in enumerate(provenance):
+        where = f"data[{k}]"
+        f.mapping(d, where)
+        f.keys(d, {"file", "rows", "sha256", "samples_used"}, where)
+        rows = None if d.get("rows") is None else _index_pair(f, d, "rows", where)
+        used = (0, 0) if d.get("samples_used") is None else _index_pair(f, d, "samples_used", where)
+        sha = d.get("sha256")
+        prov.append(Provenance(str(d.get("file")), rows, None if sha is None else str(sha), used))
+    fit = f.mapping(data.get("fit") or {}, "fit")
+    f.keys(fit, {"n_samples", "noise_var", "e_n", "rms_nm"}, "fit")
     return IdentifiedModel(
         robot=data["robot"], method=data["method"], model=model, names=tuple(names),
         expressions=tuple(expr), values=np.array(values), sigma=np.array(sigma), drive_gains=gains,
         preprocess=preprocess, weighting=str(data.get("weighting", "none")), standard=standard,
-        provenance=tuple(prov), n_samples=int(fit.get("n_samples") or 0),
-        noise_var=float(fit.get("noise_var") or np.nan),
-        train_rms=None if fit.get("rms_nm") is None else np.array(fit["rms_nm"], dtype=float),
-        train_e_n=float(fit.get("e_n") or np.nan))
+        provenance=tuple(prov),
+        n_samples=0 if fit.get("n_samples") is None else f.integer(fit, "n_samples", "fit", minimum=0),
+        noise_var=_statistic(f, fit, "noise_var", "fit"),
+        train_rms=None if fit.get("rms_nm") is None else _rms(f, fit),
+        train_e_n=_statistic(f, fit, "e_n", "fit"))
+
+
+def _index_pair(f: Fields, mapping: dict, key: str, where: str) -> tuple[int, int]:
+    pair = f.array(mapping, key, where, 2)
+    if not np.all((pair == np.round(pair)) & (np.abs(pair) < 2**53)):
+        raise f.fail(key_path(where, key), "must be two whole numbers")
+    return int(pair[0]), int(pair[1])
+
+
+def _rms(f: Fields, fit: dict) -> np.ndarray:
+    values = f.get(fit, "rms_nm", list, "fit")
+    if len(values) != 6 or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+        raise f.fail("fit.rms_nm", "must be a list of 6 numbers")
+    try:
+        return np.array(values, dtype=float)
+    except OverflowError:
+        raise f.fail("fit.rms_nm", "is out of range") from None
+
+
+def _statistic(f: Fields, mapping: dict, key: str, where: str) -> float:
+    """A reported statistic: a number, NaN when not available (None or .nan)."""
+    if mapping.get(key) is None:
+        return np.nan
+    try:
+        return float(f.get(mapping, key, (int, float), where))
+    except OverflowError:
+        raise f.fail(key_path(where, key), "is out of range") from None
+
+
+def _build(f: Fields, where: str, make):
+    """``make()``, its errors (the dataclass's own checks) as ``FILE: where: message``."""
+    try:
+        return make()
+    except ParamsFileError:
+        raise
+    except (ConfigError, TypeError, ValueError, OverflowError) as exc:
+        message = str(exc)
+        prefix = f"{f.label}: {where}: "
+        raise f.fail(where, message[len(prefix):] if message.startswith(prefix) else message) from None

@@ -26,23 +26,10 @@ import numpy as np
 from urident.errors import ConfigError
 
 
-def parse_drive_gains(text: str) -> np.ndarray:
-    """``"10,10.7,8.46,9,9.48,10.1"`` → (6,) array; ConfigError naming ``--drive-gains``."""
-    try:
-        values = np.array([float(v) for v in str(text).split(",")], dtype=float)
-    except ValueError:
-        raise ConfigError(f"--drive-gains {text!r}: expected six comma-separated numbers") from None
-    if values.shape != (6,) or not np.all(np.isfinite(values)) or np.any(values <= 0):
-        raise ConfigError(f"--drive-gains {text!r}: expected six positive numbers [N·m/A]")
-    return values
-
-
-def resolve_drive_gains(spec, drive_gains: Sequence[float] | str | None = None) -> np.ndarray:
+def resolve_drive_gains(spec, drive_gains: Sequence[float] | None = None) -> np.ndarray:
     """The drive gains to use: ``drive_gains`` if given, else the robot file's ``gear·k``."""
     if drive_gains is None:
         return np.array(spec.drive_gains, dtype=float)
-    if isinstance(drive_gains, str):
-        return parse_drive_gains(drive_gains)
     g = np.asarray(drive_gains, dtype=float)
     if g.shape != (6,) or not np.all(np.isfinite(g)) or np.any(g <= 0):
         raise ConfigError(f"drive gains must be six positive numbers, got {drive_gains!r}")

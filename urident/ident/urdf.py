@@ -79,7 +79,11 @@ def to_urdf(spec, standard: np.ndarray, name: str | None = None) -> str:
     return "\n".join(out)
 
 
-def write_urdf(spec, standard: np.ndarray, path: str | Path, name: str | None = None) -> Path:
+def write_urdf(spec, standard: np.ndarray, path: str | Path, name: str | None = None,
+               overwrite: bool = True) -> Path:
+    """Write the URDF atomically, never through a symbolic link (``overwrite=False``: must be new)."""
+    from urident.fileio import write_text_atomic
+
     path = Path(path)
-    path.write_text(to_urdf(spec, standard, name))
+    write_text_atomic(path, to_urdf(spec, standard, name), fsync=False, overwrite=overwrite)
     return path

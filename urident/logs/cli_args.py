@@ -11,8 +11,10 @@ import sys
 from pathlib import Path
 from typing import TextIO
 
-from .foreign import PRESETS
-from .reader import describe_dropped, load_log, parse_row_range
+from urident.cli.options import checked, row_range
+
+from .foreign import PRESETS, parse_column_map
+from .reader import describe_dropped, load_log
 from .recording import Recording
 
 
@@ -25,6 +27,7 @@ def add_log_arguments(parser: argparse.ArgumentParser) -> None:
         dest="log_format",
         metavar="NAME",
         default=None,
+        choices=("urident", "ur_rtde", "columns", *PRESETS),
         help="log format: urident, ur_rtde (auto-detected) or a preset for headerless CSVs: "
         + presets,
     )
@@ -33,6 +36,7 @@ def add_log_arguments(parser: argparse.ArgumentParser) -> None:
         dest="log_columns",
         metavar="MAP",
         default=None,
+        type=checked(parse_column_map),
         help="column map of a headerless CSV, 0-based, stop excluded: "
         "'t=0,q=1:7,qd=7:13,current=13:19' or a layout 't,q,qd,i'",
     )
@@ -41,7 +45,7 @@ def add_log_arguments(parser: argparse.ArgumentParser) -> None:
         dest="log_rows",
         metavar="FIRST-LAST",
         default=None,
-        type=parse_row_range,
+        type=row_range,
         help="use data rows FIRST..LAST only (1-based, inclusive, header not counted)",
     )
     group.add_argument(

@@ -301,10 +301,10 @@ class _Loader:
             where = "its sidecar names no robot" if fmt == FORMAT_UREDENT else "it has no sidecar"
             raise LogFormatError(f"{self.path}: robot unknown ({where}); pass robot= (--robot)")
         if not _ROBOT.match(robot):
-            raise LogFormatError(f"{sidecar_path(self.path)}: sidecar key 'robot' is {robot!r}")
+            raise LogFormatError(f"{sidecar_path(self.path)}: robot: is {robot!r}")
         known = self.known_robots if self.known_robots is not None else known_robot_names()
         if known and robot not in known:
-            where = f"{sidecar_path(self.path)}: sidecar key 'robot'" if arg is None else "robot"
+            where = f"{sidecar_path(self.path)}: robot" if arg is None else "robot"
             raise LogFormatError(
                 f"{self.path}: unknown robot {robot!r} ({where}); known: {', '.join(sorted(known))}"
             )

@@ -10,9 +10,9 @@ from typing import Any
 
 import yaml
 
+from urident.errors import LogFormatError, shown
 from urident.fileio import write_text_atomic
-
-from urident.errors import LogFormatError
+from urident.yamlio import load_yaml
 
 from .schema import FORMAT_NAME, SIDECAR_KEYS, STATUSES
 
@@ -57,24 +57,7 @@ def _plain(value: Any) -> Any:
 def read_sidecar(path: str | Path) -> dict[str, Any]:
     """Read and validate a sidecar; any defect is a one-line LogFormatError naming the key."""
     path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise LogFormatError(f"{path}: cannot read sidecar: {exc.strerror or exc}") from None
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise LogFormatError(f"{path}: sidecar is not UTF-8 text (byte {exc.start})") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.MarkedYAMLError as exc:
-        mark = exc.problem_mark
-        line = f":{mark.line + 1}" if mark is not None else ""
-        problem = (exc.problem or "malformed YAML").replace("\n", " ")
-        raise LogFormatError(f"{path}{line}: sidecar is not valid YAML: {problem}") from None
-    except Exception as exc:  # noqa: BLE001 - any parser failure on untrusted input
-        msg = str(exc).replace("\n", " ")[:120]
-        raise LogFormatError(f"{path}: sidecar is not valid YAML: {msg}") from None
+    data = load_yaml(path, "sidecar", LogFormatError)
     if data is None:
         raise LogFormatError(f"{path}: sidecar is empty")
     if not isinstance(data, dict):
@@ -82,7 +65,7 @@ def read_sidecar(path: str | Path) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for key, value in data.items():
         if not isinstance(key, str):
-            raise LogFormatError(f"{path}: sidecar key {key!r} is not a string")
+            raise LogFormatError(f"{path}: {shown(key)}: sidecar key is not a string")
         if isinstance(value, (_dt.datetime, _dt.date)):
             value = value.isoformat()
         out[key] = value
@@ -91,42 +74,47 @@ def read_sidecar(path: str | Path) -> dict[str, Any]:
         types = SIDECAR_KEYS[key]
         if isinstance(value, bool) or not isinstance(value, types):
             names = " or ".join(t.__name__ for t in types)
-            raise LogFormatError(
-                f"{path}: sidecar key {key!r} must be {names}, got {type(value).__name__}"
-            )
+            raise LogFormatError(f"{path}: {key}: must be {names}, got {type(value).__name__}")
     _check_values(path, out)
     return out
+
+
+def _finite(value: float) -> bool:
+    try:
+        return math.isfinite(value)
+    except OverflowError:  # an integer beyond float range
+        return False
 
 
 def _check_values(path: Path, data: dict[str, Any]) -> None:
     fmt = data.get("format")
     if fmt is not None and fmt != FORMAT_NAME:
-        raise LogFormatError(f"{path}: sidecar key 'format' is {fmt!r}, expected {FORMAT_NAME!r}")
+        raise LogFormatError(f"{path}: format: is {shown(fmt)!r}, expected {FORMAT_NAME!r}")
     status = data.get("status")
     if status is not None and status not in STATUSES:
         raise LogFormatError(
-            f"{path}: sidecar key 'status' is {status!r}, expected one of {', '.join(STATUSES)}"
+            f"{path}: status: is {shown(status)!r}, expected one of {', '.join(STATUSES)}"
         )
     rate = data.get("rate_hz")
-    if rate is not None and not (math.isfinite(rate) and 0 < rate <= 1e6):
-        raise LogFormatError(f"{path}: sidecar key 'rate_hz' must be a positive rate, got {rate}")
+    if rate is not None and not (_finite(rate) and 0 < rate <= 1e6):
+        raise LogFormatError(f"{path}: rate_hz: must be a positive rate, got {rate}")
     for key in ("late_cycles", "duplicates_skipped", "n_samples", "format_version"):
         value = data.get(key)
         if value is not None and value < 0:
-            raise LogFormatError(f"{path}: sidecar key {key!r} must be >= 0, got {value}")
+            raise LogFormatError(f"{path}: {key}: must be >= 0, got {value}")
     for key in ("gear_ratios", "torque_constants"):
         value = data.get(key)
         if value is None:
             continue
         ok = len(value) == 6 and all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+            isinstance(v, (int, float)) and not isinstance(v, bool) and _finite(v)
             for v in value
         )
         if not ok:
-            raise LogFormatError(f"{path}: sidecar key {key!r} must be a list of 6 finite numbers")
+            raise LogFormatError(f"{path}: {key}: must be a list of 6 finite numbers")
     columns = data.get("columns")
     if columns is not None and not all(isinstance(c, str) for c in columns):
-        raise LogFormatError(f"{path}: sidecar key 'columns' must be a list of column names")
+        raise LogFormatError(f"{path}: columns: must be a list of column names")
     robot = data.get("robot")
     if robot is not None and not robot.strip():
-        raise LogFormatError(f"{path}: sidecar key 'robot' is empty")
+        raise LogFormatError(f"{path}: robot: is empty")

@@ -7,7 +7,7 @@ import time
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
-from urident.errors import LogFormatError
+from urident.fileio import check_output, create_exclusive
 
 from .schema import (
     FORMAT_NAME,
@@ -87,13 +87,11 @@ class LogWriter:
         self._closed = False
 
         self._meta = self._initial_metadata(metadata or {})
-        mode = "w" if overwrite else "x"
-        try:
-            self._fh = open(self.path, mode, encoding="utf-8", newline="\n")
-        except FileExistsError:
-            raise LogFormatError(
-                f"{self.path}: log exists; choose another name or pass overwrite=True"
-            ) from None
+        if not overwrite:
+            check_output(self.sidecar, overwrite=False)
+        # created exclusively (never through a symbolic link); OutputError names the reason
+        fd = create_exclusive(self.path, overwrite=overwrite)
+        self._fh = os.fdopen(fd, "w", encoding="utf-8", newline="\n")
         self._fh.write(",".join(self.columns) + "\n")
         self._fh.flush()
         os.fsync(self._fh.fileno())

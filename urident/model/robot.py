@@ -14,10 +14,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
-from urident.errors import ConfigError, UnknownRobotError, shown
+from urident.errors import UnknownRobotError, shown
 from urident.model.parameters import N_JOINTS, N_PARAMS, standard_from_links  # noqa: F401  (N_PARAMS: re-exported)
+from urident.yamlio import Fields, load_yaml
 
 ROBOTS_DIR = Path(__file__).parent / "robots"
 
@@ -123,9 +123,7 @@ def load_robot(name_or_path: str | Path) -> RobotSpec:
     """Load a robot by name (``ur5``, ``ur5e``, ``ur10e``) or from a YAML file path."""
     text = str(name_or_path)
     if text.endswith((".yaml", ".yml")) or "/" in text:
-        path = Path(text)
-        if not path.is_file():
-            raise ConfigError(f"{path}: robot file not found")
+        path = Path(text)  # missing, a directory, unreadable: load_yaml names the file
     else:
         path = ROBOTS_DIR / f"{text.lower()}.yaml"
         if not path.is_file():
@@ -136,36 +134,33 @@ def load_robot(name_or_path: str | Path) -> RobotSpec:
 
 
 def _parse(path: Path) -> RobotSpec:
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f":{mark.line + 1}" if mark is not None else ""
-        raise ConfigError(f"{path}{where}: malformed YAML ({getattr(exc, 'problem', exc)})") from None
+    data = load_yaml(path, "robot file")
     reader = _Reader(path)
-    if not isinstance(data, dict):
-        raise ConfigError(f"{path}: expected a mapping at the top level")
+    reader.mapping(data, "", "a mapping at the top level")
     reader.keys(data, _TOP_KEYS, "")
     joints_data = reader.get(data, "joints", list)
     if len(joints_data) != N_JOINTS:
-        raise ConfigError(f"{path}: key 'joints' must list {N_JOINTS} joints, found {len(joints_data)}")
+        raise reader.fail("joints", f"must list {N_JOINTS} joints, found {len(joints_data)}")
     joints = tuple(_parse_joint(reader, jd, f"joints[{i}]") for i, jd in enumerate(joints_data))
     generation = reader.get(data, "generation", str)
     if generation not in ("cb3", "e-series"):
-        raise ConfigError(f"{path}: key 'generation' must be 'cb3' or 'e-series', not {generation!r}")
+        raise reader.fail("generation", f"must be 'cb3' or 'e-series', not {shown(generation)!r}")
     version_text = str(reader.get(data, "controller_version", (str, int, float)))
     try:
         version = tuple(int(v) for v in version_text.split("."))
     except ValueError:
-        raise ConfigError(f"{path}: key 'controller_version' must look like 5.11.0") from None
+        raise reader.fail("controller_version", "must look like 5.11.0") from None
     tool = reader.get(data, "tool", dict)
     reader.keys(tool, {"xyz", "rpy"}, "tool")
     names = [j.name for j in joints]
     allowed = []
-    for k, pair in enumerate(data.get("allowed_contacts", []) or []):
+    contacts = data.get("allowed_contacts", []) or []
+    if not isinstance(contacts, list):
+        raise reader.fail("allowed_contacts", "must be a list of pairs of joint names")
+    for k, pair in enumerate(contacts):
         if (not isinstance(pair, list) or len(pair) != 2
                 or not all(isinstance(n, str) and n in names + ["base"] for n in pair)):
-            raise ConfigError(f"{path}: key 'allowed_contacts[{k}]' must be a pair of joint names")
+            raise reader.fail(f"allowed_contacts[{k}]", "must be a pair of joint names")
         allowed.append(frozenset(pair))
     dh = reader.get(data, "dh", dict)
     reader.keys(dh, {"d", "a", "alpha"}, "dh")
@@ -188,15 +183,14 @@ def _parse(path: Path) -> RobotSpec:
 
 
 def _parse_joint(reader: "_Reader", jd: Any, where: str) -> Joint:
-    if not isinstance(jd, dict):
-        raise ConfigError(f"{reader.path}: key '{where}' must be a mapping")
+    reader.mapping(jd, where)
     reader.keys(jd, _JOINT_KEYS, where)
     axis = reader.get(jd, "axis", str, where)
     if axis not in ("x", "y", "z"):
-        raise ConfigError(f"{reader.path}: key '{where}.axis' must be x, y or z, not {axis!r}")
+        raise reader.fail(f"{where}.axis", f"must be x, y or z, not {shown(axis)!r}")
     limits = reader.vector(jd, "position_limits", where, 2)
     if not limits[0] < limits[1]:
-        raise ConfigError(f"{reader.path}: key '{where}.position_limits' must be [lower, upper] with lower < upper")
+        raise reader.fail(f"{where}.position_limits", "must be [lower, upper] with lower < upper")
     link = reader.get(jd, "link", dict, where)
     lw = f"{where}.link"
     reader.keys(link, _LINK_KEYS, lw)
@@ -204,8 +198,9 @@ def _parse_joint(reader: "_Reader", jd: Any, where: str) -> Joint:
     inertia_com = np.array([[inertia[0], inertia[3], inertia[4]],
                             [inertia[3], inertia[1], inertia[5]],
                             [inertia[4], inertia[5], inertia[2]]])
-    if np.linalg.eigvalsh(inertia_com).min() < 0:
-        raise ConfigError(f"{reader.path}: key '{lw}.inertia_com' is not positive semi-definite")
+    problem = inertia_problem(inertia_com)
+    if problem:
+        raise reader.fail(f"{lw}.inertia_com", problem)
     num = lambda key, **kw: float(reader.number(jd, key, where, **kw))  # noqa: E731
     return Joint(
         name=reader.get(jd, "name", str, where),
@@ -230,65 +225,45 @@ def _parse_joint(reader: "_Reader", jd: Any, where: str) -> Joint:
 
 def _parse_capsules(reader: "_Reader", items: Any, where: str) -> list[Capsule]:
     if not isinstance(items, list):
-        raise ConfigError(f"{reader.path}: key '{where}' must be a list of capsules")
+        raise reader.fail(where, "must be a list of capsules")
     capsules = []
     for k, item in enumerate(items):
         w = f"{where}[{k}]"
         if not isinstance(item, dict):
-            raise ConfigError(f"{reader.path}: key '{w}' must be a mapping with a, b, radius")
+            raise reader.fail(w, "must be a mapping with a, b, radius")
         reader.keys(item, _CAPSULE_KEYS, w)
         capsules.append(Capsule(reader.vector(item, "a", w, 3), reader.vector(item, "b", w, 3),
                                 float(reader.number(item, "radius", w, positive=True))))
     return capsules
 
 
-class _Reader:
-    """Typed access to a parsed YAML mapping with errors that name the file and key path."""
+class _Reader(Fields):
+    """:class:`~urident.yamlio.Fields` with read-only vectors, as the spec's arrays are."""
 
     def __init__(self, path: Path):
+        super().__init__(path)
         self.path = path
 
-    def _name(self, where: str, key: str) -> str:
-        return f"{where}.{key}" if where else key
-
-    def keys(self, mapping: dict, allowed: set[str], where: str) -> None:
-        unknown = sorted(set(map(str, mapping)) - allowed)
-        if unknown:
-            raise ConfigError(f"{self.path}: unknown key '{shown(self._name(where, unknown[0]))}' "
-                              f"(allowed: {', '.join(sorted(allowed))})")
-
-    def get(self, mapping: dict, key: str, kind: Any, where: str = "") -> Any:
-        if key not in mapping:
-            raise ConfigError(f"{self.path}: missing key '{self._name(where, key)}'")
-        value = mapping[key]
-        if not isinstance(value, kind) or isinstance(value, bool):
-            raise ConfigError(f"{self.path}: key '{self._name(where, key)}' has the wrong type "
-                              f"({type(value).__name__})")
-        return value
-
-    def number(self, mapping: dict, key: str, where: str, positive: bool = False,
-               nonnegative: bool = False) -> float:
-        value = float(self.get(mapping, key, (int, float), where))
-        name = self._name(where, key)
-        if not np.isfinite(value):
-            raise ConfigError(f"{self.path}: key '{name}' must be finite")
-        if positive and value <= 0:
-            raise ConfigError(f"{self.path}: key '{name}' must be positive, not {value}")
-        if nonnegative and value < 0:
-            raise ConfigError(f"{self.path}: key '{name}' must not be negative, not {value}")
-        return value
-
     def vector(self, mapping: dict, key: str, where: str, size: int) -> np.ndarray:
-        value = self.get(mapping, key, list, where)
-        name = self._name(where, key)
-        try:
-            array = np.array(value, dtype=float)
-        except (TypeError, ValueError):
-            raise ConfigError(f"{self.path}: key '{name}' must be a list of {size} numbers") from None
-        if array.shape != (size,) or not np.all(np.isfinite(array)):
-            raise ConfigError(f"{self.path}: key '{name}' must be a list of {size} finite numbers")
+        array = self.array(mapping, key, where, (size,))
         array.setflags(write=False)
         return array
+
+
+def inertia_problem(inertia: np.ndarray) -> str | None:
+    """Why a (3, 3) inertia about the centre of mass is physically impossible, or None: it must be
+    symmetric positive definite and its principal moments must satisfy the triangle inequality
+    (each at most the sum of the other two, as for any real mass distribution)."""
+    moments = np.linalg.eigvalsh(inertia)
+    scale = max(float(np.abs(moments).max()), 1e-300)
+    if moments.min() <= 1e-12 * scale:
+        return (f"is not positive definite (principal moments "
+                f"{', '.join(f'{m:.4g}' for m in moments)} kg m^2)")
+    a, b, c = moments
+    if c > a + b + 1e-9 * scale:
+        return (f"violates the triangle inequality: principal moment {c:.4g} > {a:.4g} + {b:.4g} "
+                f"kg m^2 (no mass distribution has it)")
+    return None
 
 
 def rpy_to_matrix(rpy: np.ndarray) -> np.ndarray:

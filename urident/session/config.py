@@ -11,9 +11,8 @@ from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from urident.errors import ConfigError, shown
+from urident.yamlio import Fields, load_yaml
 
 # ur_rtde enforces these ranges for servoJ.
 LOOKAHEAD_RANGE_S = (0.03, 0.2)
@@ -54,13 +53,13 @@ class ExperimentConfig:
         where = self.source or "experiment configuration"
         lo, hi = LOOKAHEAD_RANGE_S
         if not lo <= self.servo.lookahead_time_s <= hi:
-            raise ConfigError(f"{where}: key 'servo.lookahead_time_s' must be in [{lo}, {hi}] s, "
+            raise ConfigError(f"{where}: servo.lookahead_time_s: must be in [{lo}, {hi}] s, "
                               f"not {self.servo.lookahead_time_s}")
         lo, hi = GAIN_RANGE
         if not lo <= self.servo.gain <= hi:
-            raise ConfigError(f"{where}: key 'servo.gain' must be in [{lo:g}, {hi:g}], not {self.servo.gain}")
+            raise ConfigError(f"{where}: servo.gain: must be in [{lo:g}, {hi:g}], not {self.servo.gain}")
         if self.approach.speed_rad_s > 1.0:
-            raise ConfigError(f"{where}: key 'approach.speed_rad_s' must be at most 1.0 rad/s (a slow approach)")
+            raise ConfigError(f"{where}: approach.speed_rad_s: must be at most 1.0 rad/s (a slow approach)")
 
 
 _SECTIONS = {"servo": ServoConfig, "approach": ApproachConfig, "monitors": MonitorConfig}
@@ -71,49 +70,40 @@ def load_experiment_config(path: str | Path | None) -> ExperimentConfig:
     if path is None:
         return ExperimentConfig()
     path = Path(path)
-    try:
-        data = yaml.safe_load(path.read_text())
-    except FileNotFoundError:
-        raise ConfigError(f"{path}: experiment configuration not found") from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = f":{mark.line + 1}" if mark is not None else ""
-        raise ConfigError(f"{path}{line}: malformed YAML ({getattr(exc, 'problem', exc)})") from None
+    data = load_yaml(path, "experiment configuration")
+    f = Fields(path)
     if data is None:
         data = {}
-    if not isinstance(data, dict):
-        raise ConfigError(f"{path}: expected a mapping at the top level")
-    allowed = set(_SECTIONS) | {"rest_s"}
-    for key in data:
-        if key not in allowed:
-            raise ConfigError(f"{path}: unknown key '{shown(key)}' (allowed: {', '.join(sorted(allowed))})")
+    f.mapping(data, "", "a mapping at the top level")
+    f.keys(data, set(_SECTIONS) | {"rest_s"}, "")
     kwargs: dict[str, Any] = {"source": str(path)}
     for name, cls in _SECTIONS.items():
-        section = data.get(name) or {}
-        if not isinstance(section, dict):
-            raise ConfigError(f"{path}: key '{name}' must be a mapping")
-        kwargs[name] = _build(cls, section, path, name)
+        section = f.mapping(data.get(name) or {}, name)
+        kwargs[name] = _build(cls, section, f, name)
     if "rest_s" in data:
-        kwargs["rest_s"] = _number(data["rest_s"], path, "rest_s", float)
+        kwargs["rest_s"] = _number(data["rest_s"], f, "rest_s", float)
     return ExperimentConfig(**kwargs)
 
 
-def _build(cls: type, section: dict, path: Path, prefix: str) -> Any:
-    known = {f.name: f for f in fields(cls)}
+def _build(cls: type, section: dict, f: Fields, prefix: str) -> Any:
+    known = {x.name: x for x in fields(cls)}
+    f.keys(section, known, prefix)
     values = {}
     for key, value in section.items():
-        if key not in known:
-            raise ConfigError(f"{path}: unknown key '{prefix}.{shown(key)}' (allowed: {', '.join(sorted(known))})")
         kind = int if known[key].type in ("int", int) else float
-        values[key] = _number(value, path, f"{prefix}.{key}", kind)
+        values[key] = _number(value, f, f"{prefix}.{key}", kind)
     return replace(cls(), **values)
 
 
-def _number(value: Any, path: Path, key: str, kind: type) -> float | int:
+def _number(value: Any, f: Fields, key: str, kind: type) -> float | int:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ConfigError(f"{path}: key '{key}' must be a number, not {value!r}")
-    if not math.isfinite(value) or value < 0:
-        raise ConfigError(f"{path}: key '{key}' must be a finite non-negative number, not {value}")
+        raise f.fail(key, f"must be a number, not {shown(value)!r}")
+    try:
+        finite = math.isfinite(value)
+    except OverflowError:
+        finite = False
+    if not finite or value < 0:
+        raise f.fail(key, f"must be a finite non-negative number, not {shown(value)}")
     if kind is int and value != int(value):
-        raise ConfigError(f"{path}: key '{key}' must be a whole number, not {value}")
+        raise f.fail(key, f"must be a whole number, not {value}")
     return kind(value)

@@ -10,6 +10,7 @@ import argparse
 import signal
 import sys
 
+from urident.cli import options
 from urident.errors import ConfigError
 
 DESCRIPTION = (
@@ -31,18 +32,32 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--host", default="127.0.0.1",
                         help="loopback address to bind (one controller per address; default 127.0.0.1)")
     parser.add_argument("--version", dest="controller_version", default=None, metavar="VERSION",
+                        type=options.checked(_parse_version),
                         help="controller software version, e.g. 5.11.0 (e-Series, 500 Hz) or 3.15.8 "
                              "(CB3, 125 Hz); default: the robot file's")
     parser.add_argument("--effects", default=None, metavar="FILE",
                         help="unmodelled-effects file (urident.simcontroller.effects)")
-    parser.add_argument("--fault", action="append", default=[], metavar="SPEC", help=FAULT_HELP)
-    parser.add_argument("--seed", type=int, default=0, help="seed of the measurement noise (default 0)")
+    parser.add_argument("--fault", action="append", default=[], metavar="SPEC", help=FAULT_HELP,
+                        type=options.checked(_parse_fault))
+    parser.add_argument("--seed", type=options.seed, default=0, help="seed of the measurement noise (default 0)")
     parser.add_argument("--no-realtime", action="store_true",
                         help="do not ask for real-time (SCHED_FIFO) scheduling of the controller loop")
     parser.add_argument("--verbose", action="store_true",
                         help="log every recipe and the first use of each script command on stderr")
-    parser.add_argument("--initial-q", default=None, metavar="Q0,...,Q5",
+    parser.add_argument("--initial-q", type=options.joint_vector, default=None, metavar="Q0,...,Q5",
                         help="initial joint positions [rad], comma-separated (default: a home pose)")
+
+
+def _parse_version(text: str):
+    from urident.simcontroller.controller import parse_version
+
+    return parse_version(text)
+
+
+def _parse_fault(text: str):
+    from urident.simcontroller.faults import parse_fault
+
+    return parse_fault(text)
 
 
 def build_server(args: argparse.Namespace):
@@ -62,14 +77,7 @@ def build_server(args: argparse.Namespace):
     if generation != spec.generation:
         raise ConfigError(f"--version {'.'.join(map(str, version[:3]))} is for {generation} controllers "
                           f"but robot '{spec.name}' is {spec.generation}")
-    initial_q = None
-    if args.initial_q:
-        try:
-            initial_q = [float(x) for x in args.initial_q.split(",")]
-        except ValueError:
-            initial_q = []
-        if len(initial_q) != 6:
-            raise ConfigError(f"--initial-q '{args.initial_q}': expected 6 comma-separated numbers")
+    initial_q = None if args.initial_q is None else list(args.initial_q)  # checked by options.joint_vector
     config = ControllerConfig(spec=spec, version=version, faults=faults, seed=args.seed,
                               effects_path=args.effects, initial_q=initial_q)
     controller = Controller(config)
@@ -102,7 +110,7 @@ def serve(args: argparse.Namespace) -> int:
 def main(argv: list[str] | None = None) -> int:
     from urident.errors import UridentError
 
-    parser = argparse.ArgumentParser(prog="python -m urident.simcontroller", description=DESCRIPTION)
+    parser = options.ArgumentParser(prog="python -m urident.simcontroller", description=DESCRIPTION)
     add_arguments(parser)
     args = parser.parse_args(argv)
     try:

@@ -125,10 +125,12 @@ def load_prediction_params(path: str | Path, spec: RobotSpec | None = None) -> A
         if suffix == ".npy":
             data: Any = np.load(path, allow_pickle=False)
         elif suffix in (".json", ".yaml", ".yml"):
-            import yaml
+            from urident.yamlio import parse_yaml, read_text
 
-            text = path.read_text()
-            data = json.loads(text) if suffix == ".json" else yaml.safe_load(text)
+            text = read_text(path, "parameter file")
+            data = json.loads(text) if suffix == ".json" else parse_yaml(text, str(path))
+            if data is None or not text.strip():
+                raise ConfigError(f"{path}: parameter file is empty")
             if isinstance(data, dict):
                 for key in ("params", "base_params", "parameters"):
                     if key in data:
@@ -148,6 +150,8 @@ def load_prediction_params(path: str | Path, spec: RobotSpec | None = None) -> A
         raise ConfigError(f"{path}: cannot read a parameter vector ({exc})") from None
     if values.size == 0:
         raise ConfigError(f"{path}: no parameter values")
+    if not np.all(np.isfinite(values)):
+        raise ConfigError(f"{path}: parameters hold NaN or infinite values")
     return values
 
 

@@ -18,10 +18,12 @@ from urllib.parse import urlparse
 import rerun as rr
 
 from urident.errors import UridentError
+from urident.fileio import check_output, commit_temp, temp_beside
 
 TIMELINE = "time"
 DEFAULT_PORT = 9876
 DEFAULT_URL = f"rerun+http://127.0.0.1:{DEFAULT_PORT}/proxy"
+_PENDING: dict[int, tuple[str, Path, bool]] = {}  # recording -> (temporary .rrd, target, overwrite)
 
 
 class ViewerUnavailable(UridentError):
@@ -50,7 +52,7 @@ def unreachable_reason(url: str) -> str | None:
 
 
 def check_sink(save: str | Path | None = None, spawn: bool = False,
-               connect: str | None = None) -> None:
+               connect: str | None = None, overwrite: bool = True) -> None:
     """Check a sink choice before doing any work: a writable ``.rrd`` path, a display for
     ``spawn``, a listening viewer for ``connect``. Raises a one-line :class:`UridentError`
     (:class:`ViewerUnavailable` for the viewer cases, suggesting ``--save``)."""
@@ -60,8 +62,7 @@ def check_sink(save: str | Path | None = None, spawn: bool = False,
         path = Path(save)
         if path.suffix != ".rrd":
             raise UridentError(f"{path}: a Rerun recording file must end in .rrd")
-        if not path.parent.is_dir():
-            raise UridentError(f"{path}: directory {path.parent} does not exist")
+        check_output(path, overwrite=overwrite)
     elif spawn:
         reason = viewer_unavailable_reason()
         if reason is not None:
@@ -83,21 +84,27 @@ def open_recording(
     *,
     blueprint: Any = None,
     recording_id: str | None = None,
+    overwrite: bool = True,
 ) -> rr.RecordingStream:
     """A new :class:`rerun.RecordingStream` with exactly one sink.
 
     ``save``: write an ``.rrd`` file (works headless); else ``spawn``: start a native viewer (or
     reuse one on port 9876); else ``connect``: a viewer's gRPC URL (``""`` for the default
     ``rerun+http://127.0.0.1:9876/proxy``). ``blueprint`` (a
-    ``rerun.blueprint.Blueprint``) becomes the default layout.
+    ``rerun.blueprint.Blueprint``) becomes the default layout. The ``.rrd`` file is written
+    beside ``save`` under a temporary name and takes its name in :func:`close_recording`, so a
+    symbolic link at ``save`` is never followed (``overwrite=False``: ``save`` must not exist).
 
     Raises :class:`ViewerUnavailable` (one line, naming the reason and suggesting ``--save``)
     when a viewer is asked for but cannot be spawned or reached.
     """
-    check_sink(save, spawn, connect)
+    check_sink(save, spawn, connect, overwrite)
     rec = rr.RecordingStream(app_id, recording_id=recording_id)
     if save is not None:
-        rec.save(Path(save), default_blueprint=blueprint)
+        fd, tmp = temp_beside(Path(save))
+        os.close(fd)
+        _PENDING[id(rec)] = (tmp, Path(save), overwrite)
+        rec.save(Path(tmp), default_blueprint=blueprint)
     elif spawn:
         try:
             rec.spawn(default_blueprint=blueprint)
@@ -114,6 +121,9 @@ def close_recording(rec: rr.RecordingStream, timeout_s: float = 10.0) -> None:
     """Flush everything to the sink and disconnect (an ``.rrd`` file is complete afterwards)."""
     rec.flush(timeout_sec=timeout_s)
     rec.disconnect()
+    pending = _PENDING.pop(id(rec), None)
+    if pending is not None:
+        commit_temp(*pending)
 
 
 def set_time(rec: rr.RecordingStream, t: float) -> None:

@@ -23,9 +23,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from urident.errors import ConfigError
+from urident.yamlio import parse_yaml, read_text
 from urident.simcontroller.effects.catalogue import EFFECT_NAMES, EFFECTS
 from urident.simcontroller.effects.params import N_JOINTS, default_value, parse_value
 
@@ -97,8 +96,8 @@ def resolve(source: str | Path) -> Path:
     """The file of ``source``: an existing path, or the name of a preset (``realistic``)."""
     text = str(source)
     path = Path(text)
-    if path.is_file():
-        return path
+    if path.is_file() or (path.exists() and ("/" in text or text.endswith((".yaml", ".yml")))):
+        return path  # a directory or unreadable file given as a path: read_text names it
     if isinstance(source, Path) or "/" in text or text.endswith((".yaml", ".yml")) or not text:
         raise ConfigError(f"{text}: effects file not found")
     if (PRESETS_DIR / f"{text}.yaml").is_file():
@@ -110,17 +109,14 @@ def resolve(source: str | Path) -> Path:
 def parse_effects(source: str | Path) -> EffectsConfig:
     """Read and validate an effects file or preset (see the module docstring)."""
     path = resolve(source)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"{path}: cannot read effects file: {exc}") from None
+    text = read_text(path, "effects file")
     return parse_effects_text(text, str(path), source=str(source), path=path)
 
 
 def parse_effects_text(text: str, label: str = "<effects>", *, source: str | None = None,
                        path: Path | None = None) -> EffectsConfig:
     """Validate effects-file ``text``; error messages name ``label``."""
-    data = _load_yaml(text, label)
+    data = parse_yaml(text, label)
     if data is None:
         raise ConfigError(f"{label}: effects file is empty; write 'effects: []' for no effects")
     if not isinstance(data, dict):
@@ -202,39 +198,3 @@ def _key(key) -> str:
     if isinstance(key, str) and text.isprintable() and text and " " not in text:
         return text
     return repr(key)
-
-
-class _StrictLoader(yaml.SafeLoader):
-    """SafeLoader that rejects duplicate mapping keys."""
-
-
-def _construct_mapping(loader: _StrictLoader, node: yaml.MappingNode, deep: bool = False):
-    seen = set()
-    for key_node, _ in node.value:
-        key = loader.construct_object(key_node, deep=True)
-        try:
-            duplicate = key in seen
-        except TypeError:  # unhashable key: let the base constructor report it
-            break
-        if duplicate:
-            raise yaml.constructor.ConstructorError(
-                None, None, f"duplicate key {key!r}", key_node.start_mark)
-        seen.add(key)
-    return loader.construct_mapping(node, deep=deep)
-
-
-_StrictLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
-
-
-def _load_yaml(text: str, label: str) -> Any:
-    try:
-        return yaml.load(text, Loader=_StrictLoader)  # noqa: S506 - a SafeLoader subclass
-    except yaml.MarkedYAMLError as exc:
-        mark = exc.problem_mark
-        line = f":{mark.line + 1}" if mark is not None else ""
-        problem = " ".join(str(exc.problem or "malformed YAML").split())
-        raise ConfigError(f"{label}{line}: malformed YAML ({problem})") from None
-    except Exception as exc:  # noqa: BLE001 - any parser failure on untrusted input
-        msg = " ".join(str(exc).split())[:120]
-        raise ConfigError(f"{label}: malformed YAML ({msg})") from None
-

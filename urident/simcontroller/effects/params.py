@@ -67,7 +67,10 @@ def check_number(value: Any, param: Param, where: str) -> float:
     """A finite number within the bounds of ``param``; ``where`` names file and key path."""
     if not _is_number(value):
         raise ConfigError(f"{where}: expected a number, got {_show(value)}")
-    x = float(value)
+    try:
+        x = float(value)
+    except OverflowError:
+        x = math.inf
     if not math.isfinite(x):
         raise ConfigError(f"{where}: expected a finite number, got {x}")
     lo, hi = param.low, param.high

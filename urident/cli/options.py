@@ -1,0 +1,325 @@
+"""Command-line conventions shared by every subcommand, in one place.
+
+* :class:`ArgumentParser`: a bad flag value, a missing or unknown option ends in ONE line
+  ``urident: error: argument --harmonics: must be an integer from 2 to 100, not '1' (see ...)``,
+  exit 2.
+* Validators for ``type=``: they run at parse time, so a bad value never reaches the
+  (possibly slow, possibly moving) command, and argparse prefixes the flag's own name.
+* The Rerun options, spelled one way on every command that can show results:
+  ``--rerun [URL]`` (spawn a viewer, or connect to URL) and ``--save OUT.rrd`` (write a file).
+* :func:`output_path`: an output flag's value checked before any heavy work
+  (:func:`urident.fileio.check_output`), naming the flag.
+
+The library raises errors naming keys (``FILE: key.path: message``); these name flags.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import re
+from pathlib import Path
+from typing import Any, Callable
+
+from urident.errors import shown
+
+N_JOINTS = 6
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse with one-line errors (no usage block) and exit code 2."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        text = " ".join(message.split())
+        self.exit(2, f"urident: error: {text} (see '{self.prog} --help')\n")
+
+
+def _fail(what: str, text: str) -> argparse.ArgumentTypeError:
+    return argparse.ArgumentTypeError(f"must be {what}, not {shown(text)!r}")
+
+
+def _float(text: str, what: str) -> float:
+    try:
+        value = float(text)
+    except (TypeError, ValueError):
+        raise _fail(what, text) from None
+    if not math.isfinite(value):
+        raise _fail(what, text)
+    return value
+
+
+def finite_float(text: str) -> float:
+    """Any finite number."""
+    return _float(text, "a finite number")
+
+
+def positive_float(text: str) -> float:
+    value = _float(text, "a positive number")
+    if value <= 0:
+        raise _fail("a positive number", text)
+    return value
+
+
+def nonnegative_float(text: str) -> float:
+    value = _float(text, "a non-negative number")
+    if value < 0:
+        raise _fail("a non-negative number", text)
+    return value
+
+
+def fraction(text: str) -> float:
+    """A number in (0, 1]."""
+    value = _float(text, "a number in (0, 1]")
+    if not 0 < value <= 1:
+        raise _fail("a number in (0, 1]", text)
+    return value
+
+
+def percentage(text: str) -> float:
+    """A number in [0, 100]."""
+    value = _float(text, "a percentage in [0, 100]")
+    if not 0 <= value <= 100:
+        raise _fail("a percentage in [0, 100]", text)
+    return value
+
+
+def int_range(low: int | None = None, high: int | None = None) -> Callable[[str], int]:
+    """An integer in [low, high] (either bound may be open)."""
+    if low is not None and high is not None:
+        what = f"an integer from {low} to {high}"
+    elif low is not None:
+        what = "a positive integer" if low == 1 else f"an integer >= {low}"
+    elif high is not None:
+        what = f"an integer <= {high}"
+    else:
+        what = "an integer"
+
+    def parse(text: str) -> int:
+        try:
+            value = int(str(text).strip())
+        except (TypeError, ValueError):
+            raise _fail(what, text) from None
+        if (low is not None and value < low) or (high is not None and value > high):
+            raise _fail(what, text)
+        return value
+
+    parse.__name__ = "integer"
+    parse.bounds = (low, high)  # type: ignore[attr-defined]
+    return parse
+
+
+positive_int = int_range(1)
+nonnegative_int = int_range(0)
+seed = int_range(0, 2**32 - 1)  # numpy's seed range
+
+
+def parse_numbers(text: str, n: int = N_JOINTS, positive: bool = False) -> tuple[float, ...]:
+    """The one parser of "N comma-separated numbers" (joint vectors, drive gains). Raises
+    ValueError with a message fit to follow a flag or key name."""
+    what = f"{n} comma-separated {'positive' if positive else 'finite'} numbers"
+    parts = [p.strip() for p in str(text).split(",")]
+    try:
+        values = tuple(float(p) for p in parts)
+    except ValueError:
+        raise ValueError(f"must be {what}, not {shown(text)!r}") from None
+    if len(values) != n:
+        raise ValueError(f"must be {what}, not {len(values)} values")
+    if not all(math.isfinite(v) and (v > 0 or not positive) for v in values):
+        raise ValueError(f"must be {what}, not {shown(text)!r}")
+    return values
+
+
+def joint_vector(text: str) -> tuple[float, ...]:
+    """Six finite numbers, one per joint (``--q0``, ``--initial-q``)."""
+    try:
+        return parse_numbers(text, N_JOINTS)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def drive_gains(text: str) -> tuple[float, ...]:
+    """Six positive joint-side drive gains i_G·k [N·m/A] (``--drive-gains``)."""
+    try:
+        return parse_numbers(text, N_JOINTS, positive=True)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def row_range(text: str) -> tuple[int, int]:
+    """``FIRST-LAST`` data rows, 1-based and inclusive (``--rows``, ``--ident-rows``, ...)."""
+    from urident.logs.reader import parse_row_range
+
+    try:
+        return parse_row_range(text)
+    except (ValueError, argparse.ArgumentTypeError) as exc:
+        raise argparse.ArgumentTypeError(str(exc).split(": ", 1)[-1] if ": " in str(exc) else str(exc)) \
+            from None
+
+
+def checked(parse: Callable[[str], Any]) -> Callable[[str], str]:
+    """A validator from a library parser (raising ValueError/ConfigError): the text is checked at
+    parse time and kept as given."""
+
+    def check(text: str) -> str:
+        try:
+            parse(text)
+        except (ValueError, TypeError) as exc:
+            message = re.sub(r"^--[\w-]+ ('[^']*': )", r"\1", " ".join(str(exc).split()))  # argparse names the flag
+            raise argparse.ArgumentTypeError(message) from None
+        return text
+
+    check.__name__ = getattr(parse, "__name__", "value")
+    return check
+
+
+def name_list(choices: Callable[[], tuple[str, ...]] | tuple[str, ...],
+              none: str | None = None) -> Callable[[str], tuple[str, ...]]:
+    """Comma-separated names, each one of ``choices`` (a tuple, or a function returning one so
+    that the heavy module defining them is imported only when the flag is given); ``none``: a
+    word meaning the empty list."""
+
+    def parse(text: str) -> tuple[str, ...]:
+        known = tuple(choices() if callable(choices) else choices)
+        if none is not None and text.strip().lower() == none:
+            return ()
+        names = tuple(x.strip() for x in text.split(",") if x.strip())
+        if not names:
+            raise argparse.ArgumentTypeError(f"must name at least one of {', '.join(known)}")
+        for name in names:
+            if name not in known:
+                raise argparse.ArgumentTypeError(
+                    f"unknown name {shown(name)!r}; choose from {', '.join(known)}"
+                    + (f" or '{none}'" if none else ""))
+        if len(set(names)) != len(names):
+            raise argparse.ArgumentTypeError(f"lists a name twice: {shown(text)!r}")
+        return names
+
+    parse.__name__ = "names"
+    parse.choices = choices  # type: ignore[attr-defined]
+    return parse
+
+
+def float_range(low: float, high: float) -> Callable[[str], float]:
+    """A number in (low, high]."""
+    what = f"a number in ({low:g}, {high:g}]"
+
+    def parse(text: str) -> float:
+        value = _float(text, what)
+        if not low < value <= high:
+            raise _fail(what, text)
+        return value
+
+    parse.__name__ = "number"
+    parse.bounds = (low, high)  # type: ignore[attr-defined]
+    return parse
+
+
+# -- outputs ------------------------------------------------------------------------------------
+
+def output_path(flag: str, path: str | Path | None, overwrite: bool, suffix: str | None = None,
+                directory: bool = False) -> Path | None:
+    """Check an output flag's target now, before any work: see :func:`urident.fileio.check_output`
+    (``directory``: the flag names a directory to create or fill, e.g. ``--png DIR``)."""
+    if path is None:
+        return None
+    from urident.fileio import check_output, check_output_dir
+
+    if directory:
+        return check_output_dir(path, flag)
+    path = Path(path)
+    if suffix is not None and path.suffix != suffix:
+        from urident.errors import ConfigError
+
+        raise ConfigError(f"{flag} {path}: must end in {suffix}")
+    return check_output(path, flag, overwrite)
+
+
+def output_dir_files(flag: str, directory: str | Path | None, names, overwrite: bool) -> None:
+    """``--png DIR``-style outputs: the directory (created later if missing) and, if it exists,
+    each of the files ``names`` the command will write into it."""
+    if directory is None:
+        return
+    output_path(flag, directory, overwrite, directory=True)
+    if Path(directory).is_dir():
+        for name in names:
+            output_path(flag, Path(directory) / name, overwrite)
+
+
+def log_output(flag: str, path: str | Path | None, overwrite: bool) -> Path | None:
+    """A log to write (``LOG.csv`` + ``LOG.yaml``; ``.csv`` is added when missing): both files
+    checked now, before any motion or simulation."""
+    if path is None:
+        return None
+    from urident.fileio import check_output
+    from urident.logs.schema import sidecar_path
+
+    path = Path(path)
+    if path.is_dir() or path.is_symlink():
+        check_output(path, flag, overwrite)  # says which
+    if path.suffix != ".csv":
+        path = path.with_suffix(".csv")
+    check_output(path, flag, overwrite)
+    check_output(sidecar_path(path), flag, overwrite)
+    return path
+
+
+def add_overwrite_argument(parser: argparse.ArgumentParser, what: str = "existing outputs") -> None:
+    parser.add_argument("--overwrite", action="store_true", help=f"replace {what} (default: refuse)")
+
+
+# -- Rerun --------------------------------------------------------------------------------------
+
+def add_rerun_arguments(parser: argparse.ArgumentParser, what: str = "results") -> None:
+    """``--rerun [URL]`` and ``--save OUT.rrd``, mutually exclusive, on every command."""
+    group = parser.add_argument_group("Rerun output")
+    sink = group.add_mutually_exclusive_group()
+    sink.add_argument("--rerun", dest="rerun", metavar="URL", nargs="?", const="spawn", default=None,
+                      help=f"show the {what} in a Rerun viewer: spawn one, or connect to URL "
+                           "(e.g. rerun+http://127.0.0.1:9876/proxy)")
+    sink.add_argument("--save", dest="rerun_save", metavar="OUT.rrd", default=None,
+                      help=f"write the {what} to a Rerun recording file (works headless)")
+
+
+def rerun_sink(args: argparse.Namespace, default_spawn: bool = False) -> dict[str, Any] | None:
+    """``{save, spawn, connect}`` for :func:`urident.viz.recording.open_recording`, or None when
+    neither option was given (and ``default_spawn`` is false)."""
+    save = getattr(args, "rerun_save", None)
+    target = getattr(args, "rerun", None)
+    if save is not None:
+        return {"save": save, "spawn": False, "connect": None}
+    if target is None:
+        return {"save": None, "spawn": True, "connect": None} if default_spawn else None
+    if target == "spawn":
+        return {"save": None, "spawn": True, "connect": None}
+    return {"save": None, "spawn": False, "connect": target}
+
+
+def check_rerun_args(args: argparse.Namespace, default_spawn: bool = False) -> None:
+    """Fail now (one line) if the Rerun sink asked for cannot work: a viewer that cannot be
+    spawned or reached, or a ``--save`` target that is not a writable new ``.rrd`` file."""
+    sink = rerun_sink(args, default_spawn)
+    if sink is None:
+        return
+    if sink["save"] is not None:
+        output_path("--save", sink["save"], getattr(args, "overwrite", False), suffix=".rrd")
+        return
+    from urident.viz.recording import check_sink
+
+    check_sink(spawn=sink["spawn"], connect=sink["connect"])
+
+
+def open_recording_from_args(args: argparse.Namespace, app_id: str, blueprint: Any = None,
+                             default_spawn: bool = False):
+    """The recording the options ask for, or None when none was asked for."""
+    sink = rerun_sink(args, default_spawn)
+    if sink is None:
+        return None
+    from urident.viz.recording import open_recording
+
+    return open_recording(app_id, blueprint=blueprint, overwrite=getattr(args, "overwrite", False),
+                          **sink)
+
+
+def rerun_destination(args: argparse.Namespace) -> str:
+    save = getattr(args, "rerun_save", None)
+    return f"saved to {save}" if save else "sent to the viewer"
