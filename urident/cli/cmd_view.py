@@ -12,8 +12,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "view", help="show a log in Rerun: measured vs predicted torque, robot in 3-D",
         description="Replay a log in the Rerun viewer: one plot per joint of measured (drive gains "
                     "x current) vs predicted torque and their residual, e_N and per-joint RMS, "
-                    "tracking error, and the robot moving in 3-D. Opens a viewer unless --save "
-                    "or --connect is given.")
+                    "tracking error, and the robot moving in 3-D. The prediction is urident "
+                    "validate's: preprocessing and drive gains follow the parameters file. Opens a "
+                    "viewer unless --save or --connect is given.")
     p.add_argument("log", metavar="LOG", help="log CSV (urident, ur_rtde or foreign format)")
     p.add_argument("--robot", default=None,
                    help="robot name or file (default: the robot named in the log's sidecar)")
@@ -28,45 +29,48 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                       help="send to a running viewer (default rerun+http://127.0.0.1:9876/proxy)")
     p.add_argument("--pose-rate", dest="pose_rate_hz", type=float, default=30.0, metavar="HZ",
                    help="rate of the 3-D robot poses (default 30 Hz; 0 = every sample)")
-    p.add_argument("--cutoff", dest="cutoff_hz", type=float, default=10.0, metavar="HZ",
-                   help="low-pass cutoff of the zero-phase acceleration estimate (default 10 Hz)")
+    from urident.cli.cmd_identify import add_preprocess_arguments
     from urident.logs import add_log_arguments
 
+    add_preprocess_arguments(p, trim_default=False)
+    p.add_argument("--cutoff", dest="filter_hz", type=float, default=None, help=argparse.SUPPRESS)
     add_log_arguments(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    from urident.cli.cmd_identify import preprocess_overrides
     from urident.errors import ConfigError
+    from urident.ident import load_prediction_params, nominal_parameters, predict_recordings, prediction_config
     from urident.logs import load_log_from_args
     from urident.model import load_robot
     from urident.viz.blueprint import torque_blueprint
-    from urident.viz.prediction import load_prediction_params, recording_predictor
     from urident.viz.recording import check_sink, close_recording, open_recording
     from urident.viz.replay import log_recording_comparison
 
     spawn = args.save is None and args.connect is None
     check_sink(args.save, spawn, args.connect)  # fail before the (slow) loading
-    if not args.cutoff_hz > 0:
-        raise ConfigError(f"--cutoff must be positive, got {args.cutoff_hz}")
     recording = load_log_from_args(args.log, args, robot=args.robot)
     robot = args.robot or recording.robot
     if robot is None:
         raise ConfigError(f"{args.log}: the log names no robot; pass --robot")
     spec = load_robot(robot)
-    params = load_prediction_params(args.params, spec) if args.params else None
-    predictor = recording_predictor(spec, params, cutoff_hz=args.cutoff_hz)
-    tau_predicted = predictor(recording)  # before opening a viewer: errors come first
+    params = load_prediction_params(args.params, spec) if args.params else nominal_parameters(spec)
+    config = prediction_config(params, **preprocess_overrides(args))
+    prediction = predict_recordings(params, [recording], spec, config=config,
+                                    drive_gains=args.drive_gains or None)  # errors before a viewer opens
+    result = prediction.validation()
 
     rec = open_recording("urident_view", save=args.save, spawn=spawn, connect=args.connect,
                          blueprint=torque_blueprint(joint_names=spec.joint_names))
-    metrics = log_recording_comparison(
-        rec, spec, recording, tau_predicted=tau_predicted,
-        title=f"{spec.name}: measured vs {'identified' if params is not None else 'nominal'} model",
+    log_recording_comparison(
+        rec, spec, recording, prediction.data.t, prediction.data.q, result.tau_measured,
+        result.tau_predicted, e_n=result.e_n, rms=result.rms_nm, index=prediction.sample_index(),
+        title=f"{spec.name}: measured vs {'identified' if args.params else 'nominal'} model",
         pose_rate_hz=args.pose_rate_hz or None)
     close_recording(rec)
-    rms = ", ".join(f"{metrics[f'rms/{j}']:.3g}" for j in spec.joint_names)
+    rms = ", ".join(f"{v:.3g}" for v in result.rms_nm)
     where = f"saved {args.save}" if args.save else "sent to the viewer"
-    print(f"{len(recording)} samples, e_N = {metrics['e_N']:.4f}, RMS residual [N m] = [{rms}]; {where}",
+    print(f"{result.n_samples} samples, e_N = {result.e_n:.4f}, RMS residual [N m] = [{rms}]; {where}",
           file=sys.stdout)
     return 0

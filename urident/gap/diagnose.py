@@ -42,6 +42,7 @@ from urident.gap.controller import controller_reference
 from urident.gap.data import GapSet, build_set
 from urident.gap.residual import SetContext, fit_baseline, make_context
 from urident.gap.scoring import Fit, Scorer
+from urident.ident.metrics import error_metrics
 
 NO_EFFECT = "no unmodelled effect found"
 _PREFER_AXIS = {"stribeck": ("velocity",), "load_friction": ("load",), "thermal_drift": ("time",),
@@ -203,11 +204,11 @@ class GapResult:
 
 
 def _rms(r: np.ndarray) -> np.ndarray:
-    return np.sqrt(np.mean(r * r, axis=0))
+    return error_metrics(r)[1]
 
 
 def _e_n(r: np.ndarray) -> float:
-    return float(np.linalg.norm(r) / r.shape[0])
+    return error_metrics(r)[0]
 
 
 def diagnose(ident_recordings: Sequence, valid_recordings: Sequence, spec, *, params=None,
@@ -217,8 +218,8 @@ def diagnose(ident_recordings: Sequence, valid_recordings: Sequence, spec, *, pa
     config = config or GapConfig()
     if drive_gains is None and params is not None:
         drive_gains = params.drive_gains
-    ident = build_set(ident_recordings, spec, drive_gains, preprocess, "identification logs")
-    valid = build_set(valid_recordings, spec, drive_gains, preprocess, "validation logs")
+    ident = build_set(ident_recordings, spec, drive_gains, preprocess, "identification logs", params)
+    valid = build_set(valid_recordings, spec, drive_gains, preprocess, "validation logs", params)
     return diagnose_prepared(spec, ident, valid, params=params, config=config)
 
 
