@@ -41,7 +41,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from urident.cli.cmd_identify import preprocess_overrides
     from urident.errors import ConfigError
-    from urident.ident import load_prediction_params, nominal_parameters, predict_recordings, prediction_config
+    from urident.ident import (load_prediction_params, nominal_parameters, predict_recordings,
+                               prediction_config)
     from urident.logs import load_log_from_args
     from urident.model import load_robot
     from urident.viz.blueprint import torque_blueprint

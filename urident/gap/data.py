@@ -46,7 +46,8 @@ def build_set(recordings: Sequence, spec, drive_gains=None, config=None, what: s
               params=None) -> GapSet:
     """Prepare ``recordings`` (each filtered on its own) and cut their auxiliary signals alike;
     ``params``: the baseline parameters whose preprocessing and drive gains to follow."""
-    from urident.ident import PreprocessConfig, concatenate, predict_recordings, prediction_config, preprocess
+    from urident.ident import (PreprocessConfig, concatenate, predict_recordings, prediction_config,
+                               preprocess)
 
     recordings = list(recordings)
     if not recordings:

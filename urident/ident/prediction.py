@@ -108,8 +108,7 @@ def predict_recordings(params: IdentifiedModel, recordings, spec=None, *, payloa
     _check_payload(payload)
     spec = _spec_for(params, spec)
     check_compatible(params, spec)
-    if not isinstance(recordings, (list, tuple)):
-        recordings = [recordings]
+    recordings = [recordings] if hasattr(recordings, "current") else list(recordings)
     if not recordings:
         raise ConfigError("no recording to predict")
     config = config or prediction_config(params)
@@ -128,7 +127,8 @@ class StreamPredictor:
         self.spec = _spec_for(params, spec)
         check_compatible(params, self.spec)
         self.params = params
-        self.gains = resolve_drive_gains(self.spec, params.drive_gains if drive_gains is None else drive_gains)
+        self.gains = resolve_drive_gains(self.spec,
+                                         params.drive_gains if drive_gains is None else drive_gains)
         self._acc = CausalAcceleration(params.preprocess.filter_hz)
         self._state: dict = {}
         self._last: tuple | None = None
