@@ -40,8 +40,7 @@ from urident.ident.metrics import metrics
 from urident.ident.preprocess import (CausalAcceleration, PreprocessConfig, Prepared, concatenate,
                                       preprocess)
 from urident.ident.torque import resolve_drive_gains, torque_from_current
-
-N_STANDARD = 78
+from urident.model.robot import N_PARAMS as N_STANDARD
 
 
 def prediction_config(params: IdentifiedModel, **overrides) -> PreprocessConfig:
