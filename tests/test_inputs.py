@@ -18,7 +18,12 @@ from urident.logs import LOG_FIELDS, LogWriter, load_log
 from urident.model import load_robot
 from urident.session import load_experiment_config
 from urident.simcontroller.effects import parse_effects
-from urident.viz.prediction import load_prediction_params
+from functools import partial
+
+from urident.ident.prediction import load_prediction_params as _load_prediction_params
+from urident.model import load_robot as _load_robot
+
+load_prediction_params = partial(_load_prediction_params, spec=_load_robot("ur5"))
 from urident.yamlio import parse_yaml
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -24,18 +24,20 @@ def _sample(k: int):
     return t, q, qd, [0.4] * 6
 
 
-class _GatedModel:
-    """A torque model that blocks until released: a consumer far behind the control loop."""
+class _Gate:
+    """Makes the one prediction path block until released: a consumer far behind the loop."""
 
-    def __init__(self, spec):
-        from urident.viz.prediction import torque_model
+    def __init__(self, monkeypatch):
+        from urident.ident.prediction import StreamPredictor
 
         self.gate = threading.Event()
-        self.inner = torque_model(spec)
+        inner = StreamPredictor.update
 
-    def __call__(self, q, qd, qdd):
-        self.gate.wait(60)
-        return self.inner(q, qd, qdd)
+        def update(predictor, *args):
+            self.gate.wait(60)
+            return inner(predictor, *args)
+
+        monkeypatch.setattr(StreamPredictor, "update", update)
 
 
 def _headless(monkeypatch):
@@ -44,10 +46,10 @@ def _headless(monkeypatch):
     monkeypatch.setattr("sys.platform", "linux")
 
 
-def test_push_never_blocks_and_counts_drops(tmp_path, spec):
-    model = _GatedModel(spec)
+def test_push_never_blocks_and_counts_drops(tmp_path, spec, monkeypatch):
+    model = _Gate(monkeypatch)
     out = tmp_path / "drops.rrd"
-    streamer = LiveStreamer(spec, model, save=out, backend="thread", queue_size=50)
+    streamer = LiveStreamer(spec, save=out, backend="thread", queue_size=50)
     n = 3000
     accepted = []
 
@@ -136,12 +138,15 @@ def test_headless_spawn_without_fallback_disables(spec, monkeypatch):
         LiveStreamer(spec, spawn=True, strict=True)
 
 
-def test_consumer_failure_is_reported_not_raised(tmp_path, spec):
-    def broken(q, qd, qdd):
+def test_consumer_failure_is_reported_not_raised(tmp_path, spec, monkeypatch):
+    from urident.ident.prediction import StreamPredictor
+
+    def broken(*args):
         raise RuntimeError("model exploded")
 
+    monkeypatch.setattr(StreamPredictor, "update", broken)
     warnings = []
-    streamer = LiveStreamer(spec, broken, save=tmp_path / "broken.rrd", backend="thread",
+    streamer = LiveStreamer(spec, save=tmp_path / "broken.rrd", backend="thread",
                             warn=warnings.append)
     for k in range(10):
         streamer.push(*_sample(k))

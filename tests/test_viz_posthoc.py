@@ -23,7 +23,6 @@ from urident.viz import (
     read_rrd,
     torque_metrics,
 )
-from urident.viz.prediction import CausalAcceleration, torque_model, zero_phase_acceleration
 
 SERIES = ("measured", "predicted", "residual")
 
@@ -159,7 +158,7 @@ def test_view_bad_params_is_one_line_error(tmp_path, synthetic_log, capsys):
                  "--save", str(tmp_path / "x.rrd")])
     err = capsys.readouterr().err
     assert code == 2
-    assert err.startswith("urident: error: prediction parameters") and err.count("\n") == 1
+    assert err.startswith(f"urident: error: {params}: prediction parameters") and err.count("\n") == 1
 
 
 def test_view_headless_suggests_save(monkeypatch, synthetic_log, capsys):
@@ -184,20 +183,25 @@ def test_connect_to_nothing_is_viewer_unavailable():
 
 
 def test_base_parameter_prediction_matches_standard(spec):
+    from urident.ident import parameters_from_vector, predict
     from urident.model.base import base_parameters
 
     _, q, qd, qdd = _motion(50)
-    tau = torque_model(spec)(q, qd, qdd)
+    tau = joint_torques(spec, spec.nominal_params, q, qd, qdd)
+    from_standard = parameters_from_vector(spec, spec.nominal_params)
+    np.testing.assert_allclose(predict(from_standard, spec, q, qd, qdd), tau, atol=1e-8)
     base = base_parameters(spec)
-    tau_b = torque_model(spec, base.from_standard(spec.nominal_params))(q, qd, qdd)
-    np.testing.assert_allclose(tau_b, tau, atol=1e-8)
+    from_base = parameters_from_vector(spec, base.from_standard(spec.nominal_params))
+    np.testing.assert_allclose(predict(from_base, spec, q, qd, qdd), tau, atol=1e-8)
 
 
 def test_acceleration_estimates():
+    from urident.ident.preprocess import CausalAcceleration, accelerations
+
     t, _, qd, qdd = _motion(2000)
-    est = zero_phase_acceleration(t, qd)
+    est = accelerations(t, qd)
     np.testing.assert_allclose(est[100:-100], qdd[100:-100], atol=0.02 * np.abs(qdd).max())
-    causal = CausalAcceleration(cutoff_hz=15.0)
+    causal = CausalAcceleration(filter_hz=10.0)
     # constant acceleration 2 rad/s²: the causal estimate settles on it
     tt = np.arange(200) * 0.002
     out = np.concatenate([causal.update(tt[:100], np.outer(2 * tt[:100], np.ones(6))),

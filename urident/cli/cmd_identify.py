@@ -75,26 +75,22 @@ def add_preprocess_arguments(p: argparse.ArgumentParser, trim_default: bool = Tr
                    help="joint-side drive gains i_G*k [N·m/A] (default: the robot file's)")
 
 
-def preprocess_config(args: argparse.Namespace, base=None, trim_default: bool = True):
+_PREPROCESS_OPTIONS = ("filter_hz", "torque_filter_hz", "decimate", "trim_rest", "rest_threshold")
+
+
+def preprocess_overrides(args: argparse.Namespace) -> dict:
+    """The preprocessing keys given explicitly on the command line."""
+    return {key: getattr(args, key) for key in _PREPROCESS_OPTIONS if getattr(args, key, None) is not None}
+
+
+def preprocess_config(args: argparse.Namespace, trim_default: bool = True):
+    """Identification's preprocessing: the defaults, then the explicit options. (Predicting with a
+    parameters file follows that file: ``urident.ident.prediction_config``.)"""
     from dataclasses import replace
 
     from urident.ident import PreprocessConfig
 
-    cfg = base or PreprocessConfig(trim_rest=trim_default)
-    changes = {}
-    for attr, key in (("filter_hz", "filter_hz"), ("torque_filter_hz", "torque_filter_hz"),
-                      ("decimate", "decimate"), ("trim_rest", "trim_rest"),
-                      ("rest_threshold", "rest_threshold")):
-        value = getattr(args, attr, None)
-        if value is not None:
-            changes[key] = value
-    if base is not None:
-        # validating: the acceleration filter follows the parameters file, but the torques are the
-        # raw measured ones, every sample is used and rest is kept unless asked otherwise
-        for key, default in (("trim_rest", trim_default), ("torque_filter_hz", None), ("decimate", 1)):
-            if getattr(args, key, None) is None:
-                changes[key] = default
-    return replace(cfg, **changes)
+    return replace(PreprocessConfig(trim_rest=trim_default), **preprocess_overrides(args))
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

@@ -80,7 +80,7 @@ def _live_streamer(args: argparse.Namespace):
     spec = load_robot(args.robot)
     params = None
     if args.params is not None:
-        from urident.viz.prediction import load_prediction_params
+        from urident.ident import load_prediction_params
 
         params = load_prediction_params(args.params, spec)
     return LiveStreamer(spec, params, **options.rerun_sink(args),

@@ -34,10 +34,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from urident.cli.cmd_identify import preprocess_config
+    from urident.cli.cmd_identify import preprocess_overrides
     from urident.errors import ConfigError
-    from urident.ident import load_params, prepare, validate
-    from urident.ident.torque import resolve_drive_gains
+    from urident.ident import load_params, predict_recordings, prediction_config
+    from urident.ident.identify import check_compatible
     from urident.logs import load_log_from_args
     from urident.model import load_robot
 
@@ -53,13 +53,11 @@ def run(args: argparse.Namespace) -> int:
     recordings = [load_log_from_args(p, args, robot=spec.name) for p in args.logs]
     results = []
     for path, m in models:
-        config = preprocess_config(args, base=m.preprocess, trim_default=False)
-        gains = resolve_drive_gains(spec, args.drive_gains if args.drive_gains else m.drive_gains)
-        data = prepare(recordings, spec, config, gains)
-        from urident.ident.identify import check_compatible
-
         check_compatible(m, spec, str(path))
-        results.append((path, validate(m, spec, data)))
+        config = prediction_config(m, **preprocess_overrides(args))
+        prediction = predict_recordings(m, recordings, spec, config=config,
+                                        drive_gains=args.drive_gains or None)
+        results.append((path, prediction.validation()))
     for path, r in results:
         print(f"{path} ({r.method}, {r.n_samples} samples): e_N = {r.e_n:.4f}, "
               f"mean RMS {r.mean_rms_nm:.3f} N·m")

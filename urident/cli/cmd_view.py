@@ -14,8 +14,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "view", help="show a log in Rerun: measured vs predicted torque, robot in 3-D",
         description="Replay a log in the Rerun viewer: one plot per joint of measured (drive gains "
                     "x current) vs predicted torque and their residual, e_N and per-joint RMS, "
-                    "tracking error, and the robot moving in 3-D. Spawns a viewer unless --save "
-                    "OUT.rrd or --rerun URL is given.")
+                    "tracking error, and the robot moving in 3-D. The prediction is urident "
+                    "validate's: preprocessing and drive gains follow the parameters file. Spawns a "
+                    "viewer unless --save OUT.rrd or --rerun URL is given.")
     p.add_argument("log", metavar="LOG", help="log CSV (urident, ur_rtde or foreign format)")
     p.add_argument("--robot", default=None,
                    help="robot name or file (default: the robot named in the log's sidecar)")
@@ -27,20 +28,24 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     options.add_overwrite_argument(p, "an existing .rrd file")
     p.add_argument("--pose-rate", dest="pose_rate_hz", type=options.nonnegative_float, default=30.0,
                    metavar="HZ", help="rate of the 3-D robot poses (default 30 Hz; 0 = every sample)")
-    p.add_argument("--cutoff", dest="cutoff_hz", type=options.positive_float, default=10.0, metavar="HZ",
-                   help="low-pass cutoff of the zero-phase acceleration estimate (default 10 Hz)")
+    from urident.cli.cmd_identify import add_preprocess_arguments
     from urident.logs import add_log_arguments
 
+    add_preprocess_arguments(p, trim_default=False)
+    p.add_argument("--cutoff", dest="filter_hz", type=options.positive_float, default=None,
+                   help=argparse.SUPPRESS)
     add_log_arguments(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    from urident.cli.cmd_identify import preprocess_overrides
     from urident.errors import ConfigError
+    from urident.ident import (load_prediction_params, nominal_parameters, predict_recordings,
+                               prediction_config)
     from urident.logs import load_log_from_args
     from urident.model import load_robot
     from urident.viz.blueprint import torque_blueprint
-    from urident.viz.prediction import load_prediction_params, recording_predictor
     from urident.viz.recording import close_recording
     from urident.viz.replay import log_recording_comparison
 
@@ -50,19 +55,22 @@ def run(args: argparse.Namespace) -> int:
     if robot is None:
         raise ConfigError(f"{args.log}: the log names no robot; pass --robot")
     spec = load_robot(robot)
-    params = load_prediction_params(args.params, spec) if args.params else None
-    predictor = recording_predictor(spec, params, cutoff_hz=args.cutoff_hz)
-    tau_predicted = predictor(recording)  # before opening a viewer: errors come first
+    params = load_prediction_params(args.params, spec) if args.params else nominal_parameters(spec)
+    config = prediction_config(params, **preprocess_overrides(args))
+    prediction = predict_recordings(params, [recording], spec, config=config,
+                                    drive_gains=args.drive_gains or None)  # errors before a viewer opens
+    result = prediction.validation()
 
     rec = options.open_recording_from_args(args, "urident_view", default_spawn=True,
                                            blueprint=torque_blueprint(joint_names=spec.joint_names))
-    metrics = log_recording_comparison(
-        rec, spec, recording, tau_predicted=tau_predicted,
-        title=f"{spec.name}: measured vs {'identified' if params is not None else 'nominal'} model",
+    log_recording_comparison(
+        rec, spec, recording, prediction.data.t, prediction.data.q, result.tau_measured,
+        result.tau_predicted, e_n=result.e_n, rms=result.rms_nm, index=prediction.sample_index(),
+        title=f"{spec.name}: measured vs {'identified' if args.params else 'nominal'} model",
         pose_rate_hz=args.pose_rate_hz or None)
     close_recording(rec)
-    rms = ", ".join(f"{metrics[f'rms/{j}']:.3g}" for j in spec.joint_names)
+    rms = ", ".join(f"{v:.3g}" for v in result.rms_nm)
     where = options.rerun_destination(args)
-    print(f"{len(recording)} samples, e_N = {metrics['e_N']:.4f}, RMS residual [N m] = [{rms}]; {where}",
+    print(f"{result.n_samples} samples, e_N = {result.e_n:.4f}, RMS residual [N m] = [{rms}]; {where}",
           file=sys.stdout)
     return 0

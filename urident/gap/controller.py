@@ -5,10 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 from urident.gap.residual import SetContext
+from urident.ident.metrics import error_metrics
 
 
 def _rms(x: np.ndarray) -> np.ndarray:
-    return np.sqrt(np.mean(x * x, axis=0))
+    return error_metrics(x)[1]
 
 
 #: The controller's model "changed between the runs" when, fitted on the identification logs'

@@ -3,7 +3,8 @@
 A :class:`GapSet` is :class:`urident.ident.Prepared` (filtered q̈, unfiltered measured torque
 τ = drive gains × raw current, rest trimmed) plus the logged signals that help explain a residual:
 time since the start of each run, joint temperatures and the controller's target moment, cut to
-the same samples.
+the same samples. With a baseline parameters file (``params``) the sets are prepared by the one
+prediction path, :func:`urident.ident.predict_recordings`, as that file prescribes (rest trimmed).
 """
 
 from __future__ import annotations
@@ -41,26 +42,32 @@ class GapSet:
         return float(1.0 / np.median(dt)) if dt.size else 1.0
 
 
-def build_set(recordings: Sequence, spec, drive_gains=None, config=None, what: str = "logs") -> GapSet:
-    """Prepare ``recordings`` (each filtered on its own) and cut their auxiliary signals alike."""
-    from urident.ident import PreprocessConfig, concatenate, preprocess
+def build_set(recordings: Sequence, spec, drive_gains=None, config=None, what: str = "logs",
+              params=None) -> GapSet:
+    """Prepare ``recordings`` (each filtered on its own) and cut their auxiliary signals alike;
+    ``params``: the baseline parameters whose preprocessing and drive gains to follow."""
+    from urident.ident import (PreprocessConfig, concatenate, predict_recordings, prediction_config,
+                               preprocess)
 
     recordings = list(recordings)
     if not recordings:
         raise ConfigError(f"no {what} given")
+    if params is not None:
+        config = config or prediction_config(params, trim_rest=True)
     config = config or PreprocessConfig()
     if config.decimate != 1:
         raise ConfigError("gap diagnosis needs every sample (decimate = 1)")
-    parts, run_time, temps, moments = [], [], [], []
-    for rec in recordings:
-        p = preprocess(rec, spec, config, drive_gains)
-        first, last = p.provenance[0].samples_used
-        parts.append(p)
+    if params is not None:
+        prepared = predict_recordings(params, recordings, spec, config=config, drive_gains=drive_gains).data
+    else:
+        prepared = concatenate([preprocess(rec, spec, config, drive_gains) for rec in recordings])
+    run_time, temps, moments = [], [], []
+    for rec, prov in zip(recordings, prepared.provenance):
+        first, last = prov.samples_used
         t = np.asarray(rec.t, float)
         run_time.append(t[first:last] - t[0])
         temps.append(None if rec.temperature is None else np.asarray(rec.temperature, float)[first:last])
         moments.append(None if rec.target_moment is None else np.asarray(rec.target_moment, float)[first:last])
-    prepared = concatenate(parts)
     temperature = None if any(x is None for x in temps) else np.vstack(temps)
     if temperature is not None and not np.all(np.isfinite(temperature)):
         temperature = None

@@ -35,8 +35,8 @@ def diagnose(ident_recordings: Sequence, valid_recordings: Sequence, spec, *, pa
     config = config or GapConfig()
     if drive_gains is None and params is not None:
         drive_gains = params.drive_gains
-    ident = build_set(ident_recordings, spec, drive_gains, preprocess, "identification logs")
-    valid = build_set(valid_recordings, spec, drive_gains, preprocess, "validation logs")
+    ident = build_set(ident_recordings, spec, drive_gains, preprocess, "identification logs", params)
+    valid = build_set(valid_recordings, spec, drive_gains, preprocess, "validation logs", params)
     return diagnose_prepared(spec, ident, valid, params=params, config=config)
 
 

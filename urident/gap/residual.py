@@ -107,7 +107,8 @@ def make_context(spec, model, data: GapSet) -> SetContext:
 
     check_compatible(model, spec)
     p = data.prepared
-    w = design_matrix(spec, model.model, p.q, p.qd, p.qdd, p.segment)
+    # as urident.ident.predict_prepared: timestamps drive a velocity-driven friction state
+    w = design_matrix(spec, model.model, p.q, p.qd, p.qdd, p.segment, p.t)
     values = np.asarray(model.values, float)
     tau_hat = (w @ values).reshape(-1, 6)
     rigid = ~is_friction(model.kinds)      # the link side: rigid body and rotor inertia

@@ -12,16 +12,17 @@ from urident.gap.candidates import Candidate
 from urident.gap.config import NO_EFFECT, GapConfig
 from urident.gap.residual import SetContext
 from urident.gap.scoring import Fit, Scorer
+from urident.ident.metrics import error_metrics
 
 
 def rms(r: np.ndarray) -> np.ndarray:
     """(6,) RMS per joint of an (N, 6) residual [N·m]."""
-    return np.sqrt(np.mean(r * r, axis=0))
+    return error_metrics(r)[1]
 
 
 def e_n(r: np.ndarray) -> float:
     """The paper's e_N = ‖r‖ / N of an (N, 6) residual."""
-    return float(np.linalg.norm(r) / r.shape[0])
+    return error_metrics(r)[0]
 
 
 @dataclass(eq=False)

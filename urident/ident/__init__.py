@@ -7,6 +7,8 @@ Main entry points::
     identify(spec, prepared, method="ols", model=ModelConfig(), weighting="none") -> IdentifiedModel
     identify_all(spec, prepared, ("ols", "bounded", "consistent"), ...) -> {method: IdentifiedModel}
     predict(identified, spec, q, qd, qdd) -> (N, 6) torques
+    predict_recordings(params, recordings) -> Prediction (prepared data, predicted torques): the
+        one prediction path of validate, gap --params, view and the live view (prediction.py)
     validate(identified, spec, prepared) -> ValidationResult
     save_params(identified, path) / load_params(path)
     resolve_preset(spec, prepared, "real-robot") -> PresetChoice (model, weighting, CV scores)
@@ -21,12 +23,17 @@ from urident.ident.presets import PRESETS, PresetChoice, resolve_preset
 from urident.ident.preprocess import (PreprocessConfig, Prepared, accelerations, concatenate,
                                       preprocess, zero_phase_lowpass)
 from urident.ident.torque import estimate_drive_gains, torque_from_current
-from urident.ident.validate import ValidationResult, metrics, validate
+from urident.ident.metrics import RunningMetrics, error_metrics, metrics
+from urident.ident.prediction import (Prediction, StreamPredictor, load_prediction_params,
+                                      nominal_parameters, parameters_from_vector, predict_recordings,
+                                      prediction_config)
+from urident.ident.validate import ValidationResult, validate
 
 __all__ = [
     "METHODS", "PRESETS", "Estimate", "PresetChoice", "resolve_preset", "IdentifiedModel", "ModelConfig", "ParamsFileError", "PreprocessConfig",
-    "Prepared", "ValidationResult", "accelerations", "concatenate", "design_matrix",
-    "estimate_drive_gains", "identify", "identify_all", "load_params", "metrics",
-    "predict", "predict_prepared", "prepare", "preprocess", "save_params", "torque_from_current",
+    "Prediction", "Prepared", "RunningMetrics", "StreamPredictor", "ValidationResult", "accelerations", "concatenate", "design_matrix",
+    "error_metrics", "estimate_drive_gains", "identify", "identify_all", "load_params", "load_prediction_params", "metrics", "nominal_parameters",
+    "parameters_from_vector",
+    "predict", "predict_prepared", "predict_recordings", "prediction_config", "prepare", "preprocess", "save_params", "torque_from_current",
     "validate", "zero_phase_lowpass",
 ]

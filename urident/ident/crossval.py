@@ -18,6 +18,7 @@ import numpy as np
 from urident.ident.design import ModelConfig, design_matrix, nonnegative_mask
 from urident.ident.estimate_bounded import estimate_bounded
 from urident.ident.estimate_ols import estimate_ols
+from urident.ident.metrics import error_metrics
 from urident.ident.preprocess import Prepared
 
 
@@ -52,7 +53,7 @@ def cross_validate(spec, data: Prepared, model: ModelConfig, weighting: str = "n
         else:
             est = estimate_ols(wt, yt, names, weighting)
         err[test] = (w[rows_test] @ est.values - y_target[rows_test]).reshape(-1, 6)
-    rms = np.sqrt(np.mean(err ** 2, axis=0))
+    rms = error_metrics(err)[1]
     return CVScore(model, weighting, method, float(rms.mean()), rms)
 
 

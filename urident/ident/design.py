@@ -128,10 +128,23 @@ def nonnegative_mask(spec, config: ModelConfig) -> np.ndarray:
     return np.array(mask)
 
 
-def _dahl(config: ModelConfig, q, qd, t, segment) -> np.ndarray:
+def _dahl(config: ModelConfig, q, qd, t, segment, state: dict | None = None) -> np.ndarray:
+    initial = None if state is None else state.get("dahl")
     if config.dahl_source == "velocity" and t is not None:
-        return dahl_state(velocity_displacement(t, qd, segment), config.dahl_rad, segment)
-    return dahl_state(q, config.dahl_rad, segment)
+        z = dahl_state(velocity_displacement(t, qd, segment), config.dahl_rad, segment, initial)
+    else:
+        z = dahl_state(q, config.dahl_rad, segment, initial)
+    if state is not None:
+        state["dahl"] = z[-1].copy()
+    return z
+
+
+def _hold(config: ModelConfig, qd, segment, state: dict | None = None) -> np.ndarray:
+    z = hold_state(qd, config.friction_eps, config.hold_velocity, segment,
+                   None if state is None else state.get("hold"))
+    if state is not None:
+        state["hold"] = z[-1].copy()
+    return z
 
 
 def nominal_link_torque(spec, blocks: np.ndarray) -> np.ndarray:
@@ -140,19 +153,21 @@ def nominal_link_torque(spec, blocks: np.ndarray) -> np.ndarray:
     return features.link_torque(blocks, spec.nominal_params)
 
 
-def design_blocks(spec, config: ModelConfig, q, qd, qdd, segment=None, t=None) -> np.ndarray:
+def design_blocks(spec, config: ModelConfig, q, qd, qdd, segment=None, t=None,
+                  state: dict | None = None) -> np.ndarray:
     """(N, 6, n) regressor of the identification model (see module doc). ``t`` (N,) timestamps are
-    needed by ``dahl_source='velocity'`` (without them the Dahl state follows the positions)."""
+    needed by ``dahl_source='velocity'`` (without them the Dahl state follows the positions).
+    ``state`` (a stream, one segment): the history-driven friction states at the first sample
+    (empty: the segment starts there), updated in place to those at the last sample."""
     from urident.model import regressor_blocks
 
     base = base_for(spec, config.reduced)
     blocks = regressor_blocks(spec, q, qd, qdd, config.friction_eps)
     joints = np.arange(6)
     if config.coulomb == "dahl":
-        blocks[:, joints, COULOMB_OFFSET + joints] = _dahl(config, q, qd, t, segment)
+        blocks[:, joints, COULOMB_OFFSET + joints] = _dahl(config, q, qd, t, segment, state)
     elif config.coulomb == "hold":
-        blocks[:, joints, COULOMB_OFFSET + joints] = hold_state(qd, config.friction_eps,
-                                                                config.hold_velocity, segment)
+        blocks[:, joints, COULOMB_OFFSET + joints] = _hold(config, qd, segment, state)
     out = [blocks[:, :, base.independent]]
     n = blocks.shape[0]
     for x in config.extras:
@@ -167,13 +182,14 @@ def design_blocks(spec, config: ModelConfig, q, qd, qdd, segment=None, t=None) -
         elif x == "sqrtvisc":
             values = features.sqrt_viscous(qd)
         else:
-            values = _dahl(config, q, qd, t, segment)
+            values = _dahl(config, q, qd, t, segment, state)
         extra[:, joints, joints] = values
         out.append(extra)
     return np.concatenate(out, axis=2)
 
 
-def design_matrix(spec, config: ModelConfig, q, qd, qdd, segment=None, t=None) -> np.ndarray:
+def design_matrix(spec, config: ModelConfig, q, qd, qdd, segment=None, t=None,
+                  state: dict | None = None) -> np.ndarray:
     """Stacked (6N, n) regressor, row 6k + j."""
-    blocks = design_blocks(spec, config, q, qd, qdd, segment, t)
+    blocks = design_blocks(spec, config, q, qd, qdd, segment, t, state)
     return blocks.reshape(-1, blocks.shape[2])

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from urident.ident.metrics import error_metrics
+
 
 @dataclass(frozen=True)
 class Estimate:
@@ -56,10 +58,8 @@ def statistics(w: np.ndarray, y: np.ndarray, x: np.ndarray, weights: np.ndarray)
     scale[scale == 0] = 1.0
     gram_inv = np.linalg.pinv((ww / scale).T @ (ww / scale)) / np.outer(scale, scale)
     sigma = np.sqrt(np.clip(np.diag(gram_inv), 0, None) * noise_var)
-    e2 = e.reshape(-1, 6)
-    return {"sigma": sigma, "noise_var": noise_var,
-            "train_rms": np.sqrt(np.mean(e2 ** 2, axis=0)),
-            "train_e_n": float(np.linalg.norm(e) / n_samples)}
+    train_e_n, train_rms = error_metrics(e.reshape(-1, 6))
+    return {"sigma": sigma, "noise_var": noise_var, "train_rms": train_rms, "train_e_n": train_e_n}
 
 
 def joint_weights(w: np.ndarray, y: np.ndarray, x: np.ndarray) -> np.ndarray:

@@ -51,8 +51,10 @@ def velocity_displacement(t: np.ndarray, qd: np.ndarray, segment: np.ndarray | N
     return x
 
 
-def dahl_state(q: np.ndarray, delta: float, segment: np.ndarray | None = None) -> np.ndarray:
-    """(N, 6) normalised Dahl state from (N, 6) positions; reset to 0 where ``segment`` changes."""
+def dahl_state(q: np.ndarray, delta: float, segment: np.ndarray | None = None,
+               initial: np.ndarray | None = None) -> np.ndarray:
+    """(N, 6) normalised Dahl state from (N, 6) positions; reset to 0 where ``segment`` changes.
+    ``initial`` (6,): the state at the first sample instead of 0 (a stream continuing)."""
     q = np.asarray(q, dtype=float)
     n = q.shape[0]
     z = np.zeros_like(q)
@@ -60,7 +62,9 @@ def dahl_state(q: np.ndarray, delta: float, segment: np.ndarray | None = None) -
     s = np.sign(dq)
     decay = np.exp(-np.abs(dq) / delta)
     new_seg = np.zeros(n, dtype=bool) if segment is None else np.r_[False, np.diff(segment) != 0]
-    cur = np.zeros(q.shape[1])
+    cur = np.zeros(q.shape[1]) if initial is None else np.array(initial, dtype=float)
+    if n:
+        z[0] = cur
     for k in range(1, n):
         if new_seg[k]:
             cur = np.zeros(q.shape[1])
@@ -70,8 +74,10 @@ def dahl_state(q: np.ndarray, delta: float, segment: np.ndarray | None = None) -
     return z
 
 
-def hold_state(qd: np.ndarray, eps: float, v_hold: float, segment: np.ndarray | None = None) -> np.ndarray:
-    """(N, 6) friction state of the ``hold`` model (module doc); starts at tanh(q̇₀/ε) per segment."""
+def hold_state(qd: np.ndarray, eps: float, v_hold: float, segment: np.ndarray | None = None,
+               initial: np.ndarray | None = None) -> np.ndarray:
+    """(N, 6) friction state of the ``hold`` model (module doc); starts at tanh(q̇₀/ε) per segment,
+    or at ``initial`` (6,) on the first sample (a stream continuing)."""
     qd = np.asarray(qd, dtype=float)
     target = np.tanh(qd / eps)
     reverse_ok = np.abs(qd) >= v_hold
@@ -83,7 +89,7 @@ def hold_state(qd: np.ndarray, eps: float, v_hold: float, segment: np.ndarray | 
     cur = target[0].copy()
     for k in range(len(qd)):
         if starts[k]:
-            cur = target[k].copy()
+            cur = target[k].copy() if k or initial is None else np.array(initial, dtype=float)
         else:
             t = target[k]
             same = np.sign(t) == np.sign(cur)

@@ -132,11 +132,13 @@ def check_compatible(identified: IdentifiedModel, spec, where: str = "parameters
         raise ConfigError(f"{where}: column kinds do not match the {spec.name} model")
 
 
-def predict(identified: IdentifiedModel, spec, q, qd, qdd, segment=None, t=None) -> np.ndarray:
+def predict(identified: IdentifiedModel, spec, q, qd, qdd, segment=None, t=None,
+            state: dict | None = None) -> np.ndarray:
     """(N, 6) predicted joint torques [N·m] at states (q, q̇, q̈) (N, 6); ``t`` (N,) timestamps for
-    models whose friction state integrates q̇ (``dahl_source='velocity'``)."""
+    models whose friction state integrates q̇ (``dahl_source='velocity'``); ``state``: see
+    :func:`urident.ident.design.design_blocks` (streams). Recordings: :mod:`urident.ident.prediction`."""
     check_compatible(identified, spec)
-    w = design_matrix(spec, identified.model, q, qd, qdd, segment, t)
+    w = design_matrix(spec, identified.model, q, qd, qdd, segment, t, state)
     return (w @ identified.values).reshape(-1, 6)
 
 

@@ -18,6 +18,12 @@ uniform grid at the median rate, filtered and differentiated there, and the resu
 back to the original sample times. The sample set is therefore unchanged (the reference figures are
 defined on it), and with a uniform log the grid is the log itself.
 
+Causal mode (a stream: the live view of a running session has no future samples, so no
+zero-phase filter): the same filter s·L(s) at the same corner, run forwards only
+(:class:`CausalAcceleration`): backward difference of q̇ on the actual timestamps through L
+discretised on each step's actual Δt, y ← y + (1 − exp(−w·Δt))·(u − y). It lags by about 1/w
+(16 ms at 10 Hz) and has magnitude |L| instead of |L|²; the first sample's q̈ is 0.
+
 Torques: τ = drive_gains · current (see :mod:`urident.ident.torque`), optionally low-passed with
 the same zero-phase L (``torque_filter_hz``). Rest trimming drops leading and trailing samples where
 every |q̇_j| is below ``rest_threshold``; decimation keeps every k-th sample after filtering.
@@ -170,6 +176,34 @@ def accelerations(t: np.ndarray, qd: np.ndarray, filter_hz: float = 10.0, prewar
     return _interp(t, grid, np.gradient(v, grid, axis=0))
 
 
+class CausalAcceleration:
+    """q̈ of a stream, causal mode of :func:`accelerations` (module doc); feed batches in time order,
+    any split gives the same result. Samples whose time does not increase keep the last estimate."""
+
+    def __init__(self, filter_hz: float = 10.0):
+        if not (np.isfinite(filter_hz) and filter_hz > 0):
+            raise ConfigError(f"filter_hz must be positive, not {filter_hz}")
+        self.w = 2 * np.pi * float(filter_hz)
+        self._t: float | None = None
+        self._qd: np.ndarray | None = None
+        self._y = np.zeros(6)
+
+    def update(self, t: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """(n, 6) accelerations of samples ``t (n,)``, ``qd (n, 6)``."""
+        t = np.asarray(t, dtype=float).reshape(-1)
+        qd = np.asarray(qd, dtype=float).reshape(-1, 6)
+        out = np.empty_like(qd)
+        for k in range(len(t)):
+            tk, v = float(t[k]), qd[k]
+            if self._t is not None and tk > self._t:
+                dt = tk - self._t
+                self._y = self._y + (1.0 - np.exp(-self.w * dt)) * ((v - self._qd) / dt - self._y)
+            if self._t is None or tk > self._t:
+                self._t, self._qd = tk, v.copy()
+            out[k] = self._y
+        return out
+
+
 def rest_trim_range(qd: np.ndarray, threshold: float) -> tuple[int, int]:
     """[first, last) of the samples between the first and the last one where some |q̇_j| ≥ threshold."""
     moving = np.flatnonzero(np.any(np.abs(qd) >= threshold, axis=1))
@@ -196,10 +230,12 @@ def _check_finite(name: str, x: np.ndarray, source: str) -> None:
 
 
 def preprocess(recording, spec, config: PreprocessConfig | None = None,
-               drive_gains: Sequence[float] | None = None, tau: np.ndarray | None = None) -> Prepared:
+               drive_gains: Sequence[float] | None = None, tau: np.ndarray | None = None,
+               causal: bool = False) -> Prepared:
     """One :class:`urident.logs.Recording` → :class:`Prepared`. Torques are the current times the
     drive gains (the robot file's, or ``drive_gains``); pass ``tau`` (N, 6) to use measured joint
-    torques instead. The recording's ``robot`` must match ``spec``."""
+    torques instead. The recording's ``robot`` must match ``spec``. ``causal``: accelerations by
+    the causal mode (module doc; no torque filter then)."""
     from urident.ident.torque import resolve_drive_gains, torque_from_current
 
     config = config or PreprocessConfig()
@@ -215,8 +251,14 @@ def preprocess(recording, spec, config: PreprocessConfig | None = None,
     torque = torque_from_current(recording.current, gains) if tau is None else np.asarray(tau, float)
     _check_finite("tau", torque, source)
     qd = np.asarray(recording.qd, dtype=float)
+    if causal and config.torque_filter_hz is not None:
+        raise ConfigError("the causal mode has no torque filter (torque_filter_hz must be None)")
     try:
-        qdd = accelerations(t, qd, config.filter_hz, config.prewarp)
+        if causal:
+            sample_rate(t)  # strictly increasing, as the zero-phase mode demands
+            qdd = CausalAcceleration(config.filter_hz).update(t, qd)
+        else:
+            qdd = accelerations(t, qd, config.filter_hz, config.prewarp)
         if config.torque_filter_hz is not None:
             torque = lowpass_t(t, torque, config.torque_filter_hz, config.prewarp)
     except LogFormatError as exc:

@@ -1,8 +1,5 @@
-"""Validation metrics: the paper's normalised error e_N (eq. 22), per-joint RMS and relative error.
-
-e_N = ‖e‖ / m with e the stacked residual over all joints and m the number of *time samples*;
-rms_j = sqrt(mean_k e_kj²) [N·m]; rre_j = 100·‖e_j‖/‖τ_j‖ [%] (the source project's measure).
-"""
+"""Validation: predicted vs measured torques of prepared data, as a :class:`ValidationResult`
+(metrics from :mod:`urident.ident.metrics`)."""
 
 from __future__ import annotations
 
@@ -11,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from urident.ident.identify import IdentifiedModel, predict_prepared
+from urident.ident.metrics import RunningMetrics, error_metrics, metrics  # noqa: F401 (re-exported)
 from urident.ident.preprocess import Prepared, Provenance
 
 
@@ -39,17 +37,6 @@ class ValidationResult:
         return {"method": self.method, "e_n": float(self.e_n), "rms_nm": [float(v) for v in self.rms_nm],
                 "mean_rms_nm": self.mean_rms_nm, "rre_pct": [float(v) for v in self.rre_pct],
                 "n_samples": self.n_samples, "data": [p.as_dict() for p in self.provenance]}
-
-
-def metrics(tau_measured: np.ndarray, tau_predicted: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    """(e_N, rms (6,), rre % (6,))."""
-    e = np.asarray(tau_predicted, float) - np.asarray(tau_measured, float)
-    m = e.shape[0]
-    e_n = float(np.linalg.norm(e) / m)
-    rms = np.sqrt(np.mean(e ** 2, axis=0))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        rre = 100.0 * np.linalg.norm(e, axis=0) / np.linalg.norm(tau_measured, axis=0)
-    return e_n, rms, rre
 
 
 def validate(identified: IdentifiedModel, spec, data: Prepared) -> ValidationResult:

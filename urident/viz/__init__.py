@@ -13,6 +13,9 @@ Post-hoc / other commands::
     log_robot_motion(rec, spec, t, q)
     close_recording(rec)
 
+Predicted torques come from ``urident.ident`` (``predict_recordings``, ``StreamPredictor``);
+this package only draws them.
+
 Live (``urident run``)::
 
     with LiveStreamer(spec, params, spawn=True, fallback_save="run.rrd") as live:
@@ -46,12 +49,6 @@ _EXPORTS = {
     "LiveStreamer": "live",
     "log_recording_comparison": "replay",
     "log_torque_results": "results",
-    "CausalAcceleration": "prediction",
-    "load_prediction_params": "prediction",
-    "measured_torque": "prediction",
-    "recording_predictor": "prediction",
-    "torque_model": "prediction",
-    "zero_phase_acceleration": "prediction",
     "read_rrd": "readback",
     "add_rerun_arguments": "cli_args",
     "check_rerun_args": "cli_args",

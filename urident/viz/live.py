@@ -6,11 +6,13 @@ the sample is dropped and counted (``dropped``), so the caller never blocks. A c
 separate process (default, ``backend="process"``) or a daemon thread (``backend="thread"``) --
 takes samples in batches of about ``batch_interval_s`` (40 ms) and, for each batch:
 
-* measured torque = drive gains (i_G · k) × current;
-* predicted torque from the torque model (nominal, a 78- or base-vector, or a callable
-  ``(q, qd, qdd) -> tau``) with a **causal** q̈: backward difference of q̇ through a first-order
-  low-pass at ``cutoff_hz`` (15 Hz, lag ≈ 11 ms; see :class:`urident.viz.prediction.CausalAcceleration`);
-* residual, tracking error ``target_q − q`` (when given), running RMS and e_N;
+* measured and predicted torque from :class:`urident.ident.StreamPredictor`, the one prediction
+  path in its causal mode (parameters: nominal, a 78- or base-vector, or identified ones): the
+  parameters' drive gains × current, and q̈ by the parameters' acceleration filter run forwards
+  only (lag ≈ 16 ms at 10 Hz; a running session has no future samples), friction states carried
+  from batch to batch;
+* residual, tracking error ``target_q − q`` (when given), running RMS and e_N
+  (:class:`urident.ident.RunningMetrics`);
 * the robot's pose (capsules and skeleton from ``frame_poses``) at ``pose_rate_hz`` (30 Hz);
 * run status: ``status/samples`` (pushed so far), ``status/late_cycles``, ``status/dropped``
   (visualisation samples lost), events and the abort reason as ``status/events`` text log
@@ -28,8 +30,8 @@ every ``sys.getswitchinterval()`` (5 ms), so a 500 Hz loop in the same process s
 to ~5-8 ms while the consumer computes (measured here: worst ``push`` 7.6 ms and ~20 % late
 cycles with a thread, against 0.5 ms and no more late cycles than without any view with a
 process). The process backend uses the ``spawn`` start method (about 1-2 s to start), so a script
-that creates the streamer needs the usual ``if __name__ == "__main__":`` guard; ``samples`` and a
-callable ``params`` must be picklable.
+that creates the streamer needs the usual ``if __name__ == "__main__":`` guard; ``samples`` must
+be picklable.
 
 Pass fresh objects to ``push`` (rtde's ``getActualQ()`` lists are); a numpy buffer the caller
 rewrites in place would be read later by the consumer.
@@ -49,7 +51,6 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from urident.model.robot import RobotSpec
-from urident.viz.prediction import DEFAULT_LIVE_CUTOFF_HZ, CausalAcceleration, torque_model
 from urident.viz.robot3d import DEFAULT_POSE_RATE_HZ
 
 _STOP = "__stop__"
@@ -75,20 +76,20 @@ def _warn(message: str) -> None:
 class _Consumer:
     """Turns batches of samples into Rerun data. Runs in the consumer thread or process."""
 
-    def __init__(self, spec: RobotSpec, model: Callable, sink: dict[str, Any], app_id: str,
-                 prefix: str, pose_rate_hz: float, cutoff_hz: float, window_s: float | None):
+    def __init__(self, spec: RobotSpec, params: Any, sink: dict[str, Any], app_id: str,
+                 prefix: str, pose_rate_hz: float, window_s: float | None):
+        from urident.ident import RunningMetrics, StreamPredictor
         from urident.viz.blueprint import live_blueprint
         from urident.viz.recording import open_recording
         from urident.viz.robot3d import log_robot_static
         from urident.viz.torque_views import log_series_style
 
         self.spec = spec
-        self.model = model
+        self.predictor = StreamPredictor(params, spec)
+        self.running = RunningMetrics()
         self.prefix = prefix
         self.pose_rate_hz = pose_rate_hz
         self.joints = spec.joint_names
-        self.gains = np.asarray(spec.drive_gains, dtype=float)
-        self.acc = CausalAcceleration(cutoff_hz)
         self.rec = open_recording(app_id, blueprint=live_blueprint(prefix, self.joints,
                                                                    window_s=window_s), **sink)
         log_series_style(self.rec, prefix, self.joints)
@@ -98,8 +99,6 @@ class _Consumer:
         self.last_t: float | None = None
         self.late_cycles = 0
         self._pose_bin: float | None = None
-        self._sq_res = np.zeros(6)
-        self._sq_meas = np.zeros(6)
 
     def samples(self, items: list[tuple]) -> None:
         from urident.viz.robot3d import log_robot_motion
@@ -118,9 +117,7 @@ class _Consumer:
         q = np.array([s[1] for s in items], dtype=float).reshape(-1, 6)
         qd = np.array([s[2] for s in items], dtype=float).reshape(-1, 6)
         current = np.array([s[3] for s in items], dtype=float).reshape(-1, 6)
-        qdd = self.acc.update(t, qd)
-        tau_m = current * self.gains
-        tau_p = np.asarray(self.model(q, qd, qdd), dtype=float).reshape(-1, 6)
+        _, tau_m, tau_p = self.predictor.update(t, q, qd, current)
         rec = self.rec
         log_torque_comparison(rec, t, tau_m, tau_p, self.prefix, self.joints, style=False)
         with_target = [k for k, s in enumerate(items) if s[4] is not None]
@@ -142,12 +139,9 @@ class _Consumer:
         self.last_seq = int(items[-1][6])
         self.late_cycles = int(items[-1][5])
         self.last_t = float(t[-1])
-        self._sq_res += np.sum((tau_m - tau_p) ** 2, axis=0)
-        self._sq_meas += np.sum(tau_m ** 2, axis=0)
-        metrics = {f"rms/{j}": float(np.sqrt(self._sq_res[k] / self.processed))
-                   for k, j in enumerate(self.joints)}
-        # The paper's e_N (eq. 22): ‖e‖ / m over the samples so far.
-        metrics["e_N"] = float(np.sqrt(np.sum(self._sq_res)) / self.processed)
+        self.running.add(tau_m - tau_p)
+        metrics = {f"rms/{j}": float(v) for j, v in zip(self.joints, self.running.rms)}
+        metrics["e_N"] = self.running.e_n
         log_metrics(rec, metrics, prefix="metrics", t=self.last_t)
         log_metrics(rec, {"samples": self.last_seq, "late_cycles": self.late_cycles,
                           "dropped": self.last_seq - self.processed}, prefix="status", t=self.last_t)
@@ -243,8 +237,8 @@ def _process_main(q, closing, results, config: dict) -> None:
 class LiveStreamer:
     """Stream a running session to Rerun without ever blocking the control loop.
 
-    ``params``: None (nominal), a 78-vector, a base-parameter vector, or a callable
-    ``(q, qd, qdd) -> tau (n, 6)`` (picklable for ``backend="process"``). Sink: exactly one of
+    ``params``: None (nominal), a 78-vector, a base-parameter vector, or identified parameters
+    (:class:`urident.ident.IdentifiedModel`, e.g. ``load_prediction_params``). Sink: exactly one of
     ``save`` (``.rrd`` path), ``spawn=True``, ``connect`` (gRPC URL, ``""`` = default).
     ``queue_size`` bounds the queue (1000 ≈ 2 s at 500 Hz). Use as a context manager or call
     :meth:`close`."""
@@ -262,7 +256,6 @@ class LiveStreamer:
         backend: str = "process",
         queue_size: int = 1000,
         pose_rate_hz: float = DEFAULT_POSE_RATE_HZ,
-        cutoff_hz: float = DEFAULT_LIVE_CUTOFF_HZ,
         batch_interval_s: float = 0.04,
         window_s: float | None = 10.0,
         prefix: str = "torque",
@@ -286,9 +279,11 @@ class LiveStreamer:
             self.sink = "disabled"
             self._q = None
             return
-        model = torque_model(spec, params)  # errors (bad parameter vector) reach the caller
-        config = dict(spec=spec, model=model, sink=sink, app_id=app_id, prefix=prefix,
-                      pose_rate_hz=pose_rate_hz, cutoff_hz=cutoff_hz, window_s=window_s)
+        from urident.ident.prediction import as_parameters
+
+        params = as_parameters(spec, params)  # errors (bad parameter vector) reach the caller
+        config = dict(spec=spec, params=params, sink=sink, app_id=app_id, prefix=prefix,
+                      pose_rate_hz=pose_rate_hz, window_s=window_s)
         if backend == "thread":
             self._q = queue_mod.Queue(maxsize=queue_size)
             self._closing = threading.Event()

@@ -1,19 +1,18 @@
 """Post-hoc view of a log: measured vs predicted torque, residual, metrics, robot in 3-D.
 
-Used by ``urident view``; :func:`log_recording_comparison` also serves ``identify``, ``validate``
-and ``gap`` (pass their own predictor and a ``prefix`` so several comparisons can share one
-recording).
+Used by ``urident view``. It draws the arrays it is given: the prediction and its metrics come
+from :func:`urident.ident.predict_recordings` (pass a ``prefix`` so several comparisons can share
+one recording).
 """
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import rerun as rr
 
 from urident.model.robot import RobotSpec
-from urident.viz.prediction import measured_torque, recording_predictor
 from urident.viz.robot3d import DEFAULT_POSE_RATE_HZ, log_robot_motion
 from urident.viz.torque_views import (
     log_joint_series,
@@ -45,40 +44,43 @@ def log_recording_comparison(
     rec: rr.RecordingStream,
     spec: RobotSpec,
     recording: Any,
-    predictor: Callable[[Any], np.ndarray] | None = None,
+    t: np.ndarray,
+    q: np.ndarray,
+    tau_measured: np.ndarray,
+    tau_predicted: np.ndarray,
     *,
+    e_n: float | None = None,
+    rms: np.ndarray | None = None,
+    index: np.ndarray | None = None,
     prefix: str = "torque",
     metrics_prefix: str = "metrics",
     summary_path: str = "summary",
     title: str = "Measured vs predicted torque",
     pose_rate_hz: float | None = DEFAULT_POSE_RATE_HZ,
     robot_path: str | None = "robot",
-    tau_predicted: np.ndarray | None = None,
 ) -> dict[str, float]:
-    """Log a whole :class:`urident.logs.Recording`: torque comparison (measured = drive gains ×
-    current), tracking error when the log has ``target_q``, metrics as scalars and markdown, and
-    the robot's motion decimated to ``pose_rate_hz`` (``robot_path=None`` skips it).
-
-    The prediction is ``tau_predicted`` if given, else ``predictor(recording)``, else the robot
-    file's nominal parameters. Returns the metrics (``e_N``, ``rms/{joint}``, …)."""
+    """Log a prediction of a :class:`urident.logs.Recording`: measured and predicted torque
+    ``(N, 6)`` at times ``t``, tracking error when the log has ``target_q`` (``index``: the
+    recording's samples shown, default all), metrics as scalars and markdown (``e_n``/``rms`` as
+    computed by the caller), and the motion ``q`` decimated to ``pose_rate_hz``
+    (``robot_path=None`` skips it). Returns the metrics (``e_N``, ``rms/{joint}``, …)."""
     joints = spec.joint_names
-    t = np.asarray(recording.t, dtype=float)
-    tau_m = measured_torque(spec, recording.current)
-    if tau_predicted is None:
-        predictor = predictor or recording_predictor(spec)
-        tau_predicted = predictor(recording)
+    t = np.asarray(t, dtype=float)
+    tau_m = np.asarray(tau_measured, dtype=float)
     tau_p = np.asarray(tau_predicted, dtype=float)
-    if tau_p.shape != tau_m.shape:
-        raise ValueError(f"predicted torque must be {tau_m.shape}, got {tau_p.shape}")
+    if tau_p.shape != tau_m.shape or tau_m.shape != (len(t), 6):
+        raise ValueError(f"measured and predicted torque must be ({len(t)}, 6), got {tau_m.shape} "
+                         f"and {tau_p.shape}")
     log_torque_comparison(rec, t, tau_m, tau_p, prefix=prefix, joint_names=joints)
     if getattr(recording, "target_q", None) is not None:
-        log_joint_series(rec, "tracking", t, recording.target_q - recording.q, joints)
-    metrics = torque_metrics(tau_m, tau_p, joints)
+        sel = slice(None) if index is None else index
+        log_joint_series(rec, "tracking", t, recording.target_q[sel] - recording.q[sel], joints)
+    metrics = torque_metrics(tau_m, tau_p, joints, e_n=e_n, rms=rms)
     t_end = float(t[-1]) if len(t) else 0.0
     log_metrics(rec, {k: v for k, v in metrics.items() if not k.startswith("rms_measured/")},
                 prefix=metrics_prefix, t=t_end)
     text = metrics_markdown(metrics, title, joints) + "\n" + describe_recording(recording)
     log_text(rec, summary_path, text)
     if robot_path is not None:
-        log_robot_motion(rec, spec, t, recording.q, path=robot_path, rate_hz=pose_rate_hz)
+        log_robot_motion(rec, spec, t, q, path=robot_path, rate_hz=pose_rate_hz)
     return metrics

@@ -89,19 +89,19 @@ def log_joint_series(rec: rr.RecordingStream, path: str, t: np.ndarray, values: 
 
 
 def torque_metrics(tau_measured: np.ndarray, tau_predicted: np.ndarray,
-                   joint_names: Sequence[str] = DEFAULT_JOINT_NAMES) -> dict[str, float]:
-    """``e_N`` = ‖τ_meas − τ_pred‖ / m, the paper's eq. (22) (m time samples) [N m],
-    ``rms/{joint}`` = RMS of the residual [N m], ``rms_measured/{joint}`` [N m]."""
-    from urident.ident.validate import metrics
+                   joint_names: Sequence[str] = DEFAULT_JOINT_NAMES, e_n: float | None = None,
+                   rms=None) -> dict[str, float]:
+    """``e_N`` (the paper's eq. 22) and ``rms/{joint}`` of the residual [N m] (``e_n``/``rms`` when
+    the caller has them, else computed by :mod:`urident.ident.metrics`), and ``rms_measured/{joint}``."""
+    from urident.ident.metrics import error_metrics, metrics
 
     measured = np.asarray(tau_measured, dtype=float)
     out: dict[str, float] = {}
-    if len(measured):
-        e_n, rms, _ = metrics(measured, tau_predicted)
-    else:
-        e_n, rms = float("nan"), np.full(6, np.nan)
+    if e_n is None or rms is None:
+        e_n, rms = (metrics(measured, tau_predicted)[:2] if len(measured)
+                    else (float("nan"), np.full(6, np.nan)))
     out["e_N"] = float(e_n)
-    rms_m = np.sqrt(np.mean(measured ** 2, axis=0)) if len(measured) else np.full(6, np.nan)
+    rms_m = error_metrics(measured)[1] if len(measured) else np.full(6, np.nan)
     for j, joint in enumerate(joint_names):
         out[f"rms/{joint}"] = float(rms[j])
     for j, joint in enumerate(joint_names):
