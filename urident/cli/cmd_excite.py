@@ -13,7 +13,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "ends at rest, minimising cond(Λ) of the base regressor (or maximising log det Λ) "
                     "within the joint, velocity, acceleration, torque and collision limits, check it "
                     "densely at the controller rate and write it as a trajectory file.")
-    p.add_argument("--robot", required=True, help="robot name (ur5, ur5e, ur10e) or robot file")
+    p.add_argument("--robot", required=True, help="robot name (urident model --list) or robot file")
     p.add_argument("--out", required=True, help="trajectory file to write (YAML)")
     p.add_argument("--harmonics", type=_positive_int, default=5, help="order L of the series (default 5)")
     p.add_argument("--duration", type=_positive_float, default=20.0, help="duration [s] (default 20)")

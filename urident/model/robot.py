@@ -151,7 +151,7 @@ def available_robots() -> list[str]:
 
 
 def load_robot(name_or_path: str | Path) -> RobotSpec:
-    """Load a robot by name (``ur5``, ``ur5e``, ``ur10e``) or from a YAML file path."""
+    """Load a robot by name (``ur5e``, …: :func:`available_robots`) or from a YAML file path."""
     text = str(name_or_path)
     if text.endswith((".yaml", ".yml")) or "/" in text:
         path = Path(text)
