@@ -105,6 +105,10 @@ def run(args: argparse.Namespace) -> int:
           f"cond(Θ̄_B) = {result.criteria.cond_theta:.4g} (cond Λ = {result.criteria.cond_lambda:.4g}, "
           f"{result.criteria.n_base} base parameters), min distance {report.min_distance_m:.4f} m "
           f"({report.min_distance_pair}), {result.wall_s:.1f} s")
+    note = spec.nominal_note(("inertia_com", "rotor_inertia", "viscous_friction", "coulomb_friction",
+                              "acceleration_limit", "torque_limit"))
+    if note:  # the torque and acceleration checks use them
+        print(note)
     return 0
 
 

@@ -214,6 +214,10 @@ def run(args: argparse.Namespace) -> int:
         text = f"preset {preset_name(args)}\n" + text
     if cv_text:
         text = cv_text + "\n" + text
+    priors = ("inertia_com", "rotor_inertia", "viscous_friction", "coulomb_friction")
+    note = spec.nominal_note(priors + (("torque_constant", "gear_ratio") if args.drive_gains is None else ()))
+    if note:  # torques from currents use the file's torque constants; priors and bounds its values
+        text = text + "\n" + note
     print(text)
     if args.report:
         Path(args.report).write_text(text + "\n")
