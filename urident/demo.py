@@ -90,7 +90,7 @@ def quick_trajectories(directory: Path, duration: float = 8.0, robot: str = ROBO
     paths = []
     for name, seed in (("quick_ident.yaml", 11), ("quick_valid.yaml", 12)):
         rng = np.random.default_rng(seed)
-        for scale in (0.25, 0.2, 0.15, 0.1, 0.07):
+        for scale in (0.25, 0.2, 0.15, 0.1, 0.07, 0.05, 0.035):  # small arms need the small ones
             free = rng.normal(scale=scale, size=(6, 8))
             traj = FourierTrajectory.from_free(free, base_frequency(duration), q0, duration)
             # Shift the offset so that every quick trajectory starts (and ends) at q0.
