@@ -88,3 +88,25 @@ def test_model_list_prints_every_robot(capsys):
     assert {r["rate_hz"] for r in rows if r["generation"] == "cb3"} == {125.0}
     assert main(["model"]) == 2
     assert "--robot" in capsys.readouterr().err
+
+
+def test_nominal_marks_are_loaded_and_reported(tmp_path, capsys):
+    from pathlib import Path
+
+    from urident.errors import ConfigError
+
+    ur20, ur10e = load_robot("ur20"), load_robot("ur10e")
+    assert "inertia_com" not in ur20.nominal and "torque_constant" in ur20.nominal  # UR publishes UR20 inertias
+    assert "torque_constant" not in ur10e.nominal                                   # measured drive gains
+    assert ur20.nominal_note(("inertia_com",)) is None
+    assert "torque constants" in ur20.nominal_note()
+    bad = _variant(tmp_path, "nominal: [", "nominal: [inertias, ")
+    with pytest.raises(ConfigError, match="my_arm.yaml: key 'nominal' must be a list"):
+        load_robot(bad)
+    logs = Path(__file__).resolve().parent.parent / "logs"
+    params = tmp_path / "p.yaml"
+    assert main(["identify", str(logs / "sample_ident.csv"), "--robot", "ur5", "--method", "ols",
+                 "--out", str(params)]) == 0
+    out = capsys.readouterr().out
+    assert "robot file 'ur5': nominal values, not manufacturer data: link inertias" in out
+    assert "torque constants" not in out.splitlines()[-1]   # the UR5's are not marked nominal
