@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterable
 
 import numpy as np
 import yaml
@@ -130,7 +130,7 @@ class RobotSpec:
             return model[:-1]
         return model
 
-    def nominal_note(self, keys=None) -> str | None:
+    def nominal_note(self, keys: Iterable[str] | None = None) -> str | None:
         """One line naming this robot's nominal values among ``keys`` (default: all), or None."""
         marked = [k for k in NOMINAL_KEYS if k in self.nominal and (keys is None or k in keys)]
         if not marked:
