@@ -38,3 +38,18 @@ def test_identification_and_validation_trajectories_differ():
         a = load_trajectory(EXPERIMENTS / f"{robot}_ident.yaml").trajectory
         b = load_trajectory(EXPERIMENTS / f"{robot}_valid.yaml").trajectory
         assert not np.allclose(a.a, b.a), robot
+
+
+@pytest.mark.parametrize("kind", ["ident", "valid"])
+@pytest.mark.parametrize("robot", available_robots())
+def test_servo_lag_stays_inside_the_tracking_monitor(robot, kind, request):
+    """servoJ with the default lookahead lags the command by about q̇ · lookahead; the fastest
+    joint must stay inside the session's default tracking-error limit, or a run aborts."""
+    from urident.session.config import MonitorConfig, ServoConfig
+
+    if (robot, kind) == ("ur5e", "ident"):  # shipped before this check; reaches 2.51 rad/s
+        request.applymarker(pytest.mark.xfail(strict=True, reason="ur5e_ident.yaml lags 0.251 rad"))
+    traj = load_trajectory(EXPERIMENTS / f"{robot}_{kind}.yaml").trajectory
+    _, qd, _ = traj.evaluate(np.linspace(0.0, traj.duration, 20001))
+    lag = np.abs(qd).max() * ServoConfig().lookahead_time_s
+    assert lag < 0.95 * MonitorConfig().max_tracking_error_rad
