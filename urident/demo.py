@@ -1,9 +1,9 @@
 """``urident demo``: the whole pipeline on urident's simulated controller, no robot needed.
 
-1. start the simulated UR5e controller (``realistic`` preset of unmodelled effects) as a
-   subprocess on a free loopback address;
+1. start the simulated controller of the robot (default UR5e; ``realistic`` preset of unmodelled
+   effects) as a subprocess on a free loopback address;
 2. run the identification and validation trajectories of ``experiments/`` through ``urident run``
-   (checks, moveJ, servoJ at 500 Hz, recorder, live .rrd);
+   (checks, moveJ, servoJ at the controller's rate, recorder, live .rrd);
 3. stop the controller; identify (OLS, bounded, physically consistent); validate; diagnose the
    sim-to-real gap; write a Rerun recording of the validation;
 4. print a summary. Everything goes to ``logs/demo-<timestamp>/``.
@@ -25,7 +25,7 @@ import numpy as np
 
 from urident.errors import UridentError
 
-ROBOT = "ur5e"
+ROBOT = "ur5e"  # the default; any robot with an ident/valid pair in experiments/
 EXPERIMENTS = Path(__file__).resolve().parent.parent / "experiments"
 PORTS = (30004, 29999, 30003, 30002)
 
@@ -36,6 +36,7 @@ class DemoResult:
     validation: dict
     gap: dict
     seconds: float
+    robot: str = "UR5e"         # the arm's model name, for the summary
 
 
 class DemoError(UridentError):
@@ -76,20 +77,20 @@ def new_run_directory(root: Path) -> Path:
     raise DemoError(f"cannot create a new run directory under {root}")
 
 
-def quick_trajectories(directory: Path, duration: float = 8.0) -> tuple[Path, Path]:
+def quick_trajectories(directory: Path, duration: float = 8.0, robot: str = ROBOT) -> tuple[Path, Path]:
     """Two short, checked rest-to-rest Fourier trajectories (different seeds)."""
     from urident.excitation import (FourierTrajectory, Limits, check_trajectory,
                                     trajectory_document, write_trajectory)
     from urident.excitation.fourier import base_frequency
     from urident.model import load_robot
 
-    spec = load_robot(ROBOT)
+    spec = load_robot(robot)
     limits = Limits.from_robot(spec)
     q0 = np.array([0.0, -np.pi / 2, 0.0, -np.pi / 2, 0.0, 0.0])
     paths = []
     for name, seed in (("quick_ident.yaml", 11), ("quick_valid.yaml", 12)):
         rng = np.random.default_rng(seed)
-        for scale in (0.25, 0.2, 0.15, 0.1, 0.07):
+        for scale in (0.25, 0.2, 0.15, 0.1, 0.07, 0.05, 0.035):  # small arms need the small ones
             free = rng.normal(scale=scale, size=(6, 8))
             traj = FourierTrajectory.from_free(free, base_frequency(duration), q0, duration)
             # Shift the offset so that every quick trajectory starts (and ends) at q0.
@@ -99,16 +100,24 @@ def quick_trajectories(directory: Path, duration: float = 8.0) -> tuple[Path, Pa
         else:
             raise DemoError("could not generate a safe quick trajectory")
         path = directory / name
-        write_trajectory(path, trajectory_document(ROBOT, traj, limits))
+        write_trajectory(path, trajectory_document(robot, traj, limits))
         paths.append(path)
     return paths[0], paths[1]
 
 
 def run_demo(root: Path = Path("logs"), quick: bool = False, seed: int = 0,
-             say: Callable[[str], None] = print) -> DemoResult:
+             say: Callable[[str], None] = print, robot: str = ROBOT) -> DemoResult:
     from urident.cli.main import main as cli
     from urident.excitation import load_trajectory
+    from urident.model import load_robot
     from urident.simcontroller.process import SimControllerProcess
+
+    spec = load_robot(robot)
+    robot = spec.name
+    pair = (EXPERIMENTS / f"{robot}_ident.yaml", EXPERIMENTS / f"{robot}_valid.yaml")
+    if not quick and not all(p.is_file() for p in pair):
+        raise DemoError(f"--robot {robot}: experiments/ has no {pair[0].name} / {pair[1].name} pair "
+                        f"(use --quick, or write them with urident excite)")
 
     t0 = time.monotonic()
 
@@ -123,12 +132,12 @@ def run_demo(root: Path = Path("logs"), quick: bool = False, seed: int = 0,
     directory = new_run_directory(Path(root))
     step(f"writing everything to {directory}/")
     if quick:
-        ident_traj, valid_traj = quick_trajectories(directory)
+        ident_traj, valid_traj = quick_trajectories(directory, robot=robot)
     else:
-        ident_traj, valid_traj = EXPERIMENTS / f"{ROBOT}_ident.yaml", EXPERIMENTS / f"{ROBOT}_valid.yaml"
+        ident_traj, valid_traj = pair
     start = load_trajectory(ident_traj).trajectory.q_start
     host = free_loopback_address()
-    step(f"starting the simulated {ROBOT.upper()} controller on {host} (realistic unmodelled effects)")
+    step(f"starting the simulated {spec.model or robot} controller on {host} (realistic unmodelled effects)")
     logs = {"ident": directory / "ident.csv", "valid": directory / "valid.csv"}
     config = directory / "session.yaml"
     # The validation trajectory may start far from where identification ended: a longer (still
@@ -137,11 +146,12 @@ def run_demo(root: Path = Path("logs"), quick: bool = False, seed: int = 0,
     config.write_text("approach:\n  speed_rad_s: 0.6\n  acceleration_rad_s2: 1.0\n"
                       "  max_distance_rad: 3.2\nmonitors:\n  max_late_fraction: 0.5\n"
                       "  max_consecutive_late: 500\nrest_s: 0.5\n")
-    with SimControllerProcess(host=host, robot=ROBOT, effects="realistic", seed=seed,
+    with SimControllerProcess(host=host, robot=robot, effects="realistic", seed=seed,
                               initial_q=start + 0.05) as sim:
         for kind, trajectory in (("ident", ident_traj), ("valid", valid_traj)):
-            step(f"urident run: {kind} trajectory {trajectory.name} at 500 Hz (live view -> {kind}_live.rrd)")
-            call(["run", "--robot", ROBOT, "--host", host, "--trajectory", str(trajectory),
+            step(f"urident run: {kind} trajectory {trajectory.name} at {spec.controller_rate_hz:g} Hz "
+                 f"(live view -> {kind}_live.rrd)")
+            call(["run", "--robot", robot, "--host", host, "--trajectory", str(trajectory),
                   "--out", str(logs[kind]), "--config", str(config), "--yes",
                   "--save", str(directory / f"{kind}_live.rrd")])
         step("stopping the simulated controller")
@@ -150,21 +160,21 @@ def run_demo(root: Path = Path("logs"), quick: bool = False, seed: int = 0,
 
     params = directory / "params.yaml"
     step("urident identify: OLS, bounded and physically consistent estimates")
-    call(["identify", str(logs["ident"]), "--robot", ROBOT, "--method", "all", "--out", str(params),
+    call(["identify", str(logs["ident"]), "--robot", robot, "--method", "all", "--out", str(params),
           "--report", str(directory / "identification.txt")])
     step("urident validate: e_N and per-joint RMS on the validation run")
     call(["validate", str(logs["valid"]), "--params", str(params.with_suffix(".ols.yaml")),
           "--params", str(params.with_suffix(".bounded.yaml")), "--params", str(params),
           "--json-out", str(directory / "validation.json"), "--png", str(directory / "plots")])
     step("urident gap: where the residual lies, which effect, how far it shrinks")
-    call(["gap", "--robot", ROBOT, "--ident", str(logs["ident"]), "--valid", str(logs["valid"]),
+    call(["gap", "--robot", robot, "--ident", str(logs["ident"]), "--valid", str(logs["valid"]),
           "--json-out", str(directory / "gap.json"), "--save", str(directory / "gap.rrd")])
     step("urident view: measured vs predicted torques -> validation.rrd")
     call(["view", str(logs["valid"]), "--params", str(params), "--save", str(directory / "validation.rrd")])
 
     validation = json.loads((directory / "validation.json").read_text())
     gap = json.loads((directory / "gap.json").read_text())
-    result = DemoResult(directory, validation, gap, time.monotonic() - t0)
+    result = DemoResult(directory, validation, gap, time.monotonic() - t0, spec.model or robot)
     say("")
     say(summary(result))
     return result
@@ -174,7 +184,7 @@ def summary(result: DemoResult) -> str:
     lines = [f"urident demo finished in {result.seconds:.0f} s: {result.directory}/"]
     runs = result.validation.get("results", result.validation)
     runs = runs if isinstance(runs, list) else [runs]
-    lines.append("validation on the second trajectory (UR5e, realistic unmodelled effects):")
+    lines.append(f"validation on the second trajectory ({result.robot}, realistic unmodelled effects):")
     lines.append(f"  {'method':<11} {'e_N':>7}   RMS per joint [N·m]")
     for r in runs:
         rms = " ".join(f"{v:5.2f}" for v in r["rms_nm"])

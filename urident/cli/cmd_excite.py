@@ -21,7 +21,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "ends at rest, minimising cond(Λ) of the base regressor (or maximising log det Λ) "
                     "within the joint, velocity, acceleration, torque and collision limits, check it "
                     "densely at the controller rate and write it as a trajectory file.")
-    p.add_argument("--robot", required=True, help="robot name (ur5, ur5e, ur10e) or robot file")
+    p.add_argument("--robot", required=True, help="robot name (urident model --list) or robot file")
     p.add_argument("--out", required=True, help="trajectory file to write (YAML)")
     options.add_overwrite_argument(p, "an existing trajectory file")
     p.add_argument("--harmonics", type=options.int_range(2, MAX_HARMONICS), default=5,
@@ -137,6 +137,10 @@ def run(args: argparse.Namespace) -> int:
           f"cond(Θ̄_B) = {result.criteria.cond_theta:.4g} (cond Λ = {result.criteria.cond_lambda:.4g}, "
           f"{result.criteria.n_base} base parameters), min distance {report.min_distance_m:.4f} m "
           f"({report.min_distance_pair}), {result.wall_s:.1f} s")
+    note = spec.nominal_note(("inertia_com", "rotor_inertia", "viscous_friction", "coulomb_friction",
+                              "acceleration_limit", "torque_limit"))
+    if note:  # the torque and acceleration checks use them
+        print(note)
     return 0
 
 

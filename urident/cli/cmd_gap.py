@@ -94,6 +94,10 @@ def run(args: argparse.Namespace) -> int:
     valid = _load_all(args.valid, args, args.valid_rows, spec.name)
     result = diagnose(ident, valid, spec, params=params, drive_gains=drive_gains, config=config)
     print(format_report(result))
+    note = spec.nominal_note(None if drive_gains is None else ("inertia_com", "rotor_inertia",
+                                                              "viscous_friction", "coulomb_friction"))
+    if note:
+        print(note)
     if args.json_out:
         from urident.fileio import write_text_atomic
 

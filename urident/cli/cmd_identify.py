@@ -102,7 +102,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "--method all, --out receives the consistent estimate and PARAMS.ols.yaml / "
                     "PARAMS.bounded.yaml the others; a comparison table goes to stdout.")
     p.add_argument("logs", nargs="+", metavar="LOG", help="log files (urident, ur_rtde or --format preset)")
-    p.add_argument("--robot", required=True, help="robot name (ur5, ur5e, ur10e) or robot file")
+    p.add_argument("--robot", required=True, help="robot name (urident model --list) or robot file")
     p.add_argument("--out", required=True, metavar="PARAMS.yaml", help="parameters file to write")
     p.add_argument("--method", choices=("ols", "bounded", "consistent", "all"), default="ols",
                    help="estimation method (default ols, the paper's pseudo-inverse)")
@@ -215,6 +215,10 @@ def run(args: argparse.Namespace) -> int:
         text = f"preset {preset_name(args)}\n" + text
     if cv_text:
         text = cv_text + "\n" + text
+    priors = ("inertia_com", "rotor_inertia", "viscous_friction", "coulomb_friction")
+    note = spec.nominal_note(priors + (("torque_constant", "gear_ratio") if args.drive_gains is None else ()))
+    if note:  # torques from currents use the file's torque constants; priors and bounds its values
+        text = text + "\n" + note
     print(text)
     if args.report:
         from urident.fileio import write_text_atomic

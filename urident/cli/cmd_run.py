@@ -16,7 +16,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "rate) and the approach; then moveJ to the start, run the trajectory with "
                     "servoJ under monitors, and record every controller sample. servoStop and "
                     "stopScript always end the session.")
-    p.add_argument("--robot", required=True, help="robot name (ur5, ur5e, ur10e) or robot file")
+    p.add_argument("--robot", required=True, help="robot name (urident model --list) or robot file")
     p.add_argument("--host", required=True, help="controller address (robot, URSim or sim-controller)")
     p.add_argument("--trajectory", required=True, type=Path, help="trajectory file (urident excite)")
     p.add_argument("--out", type=Path, help="log to write (LOG.csv + LOG.yaml); required unless --check-only")

@@ -14,7 +14,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "tracking, torque model, unmodelled effects, sensor noise) without networking "
                     "and write a log in the format of `urident run`, with the simulation's ground "
                     "truth (effects, seed) in the sidecar's 'extra'.")
-    p.add_argument("--robot", help="robot name (ur5, ur5e, ur10e) or robot file; default: the "
+    p.add_argument("--robot", help="robot name (urident model --list) or robot file; default: the "
                                    "trajectory file's robot")
     p.add_argument("--trajectory", metavar="FILE", help="trajectory file (urident excite)")
     p.add_argument("--out", metavar="LOG", help="log to write (LOG.csv + LOG.yaml)")

@@ -63,6 +63,10 @@ def run(args: argparse.Namespace) -> int:
               f"mean RMS {r.mean_rms_nm:.3f} N·m")
         print("  rms_nm  " + " ".join(f"{v:6.2f}" for v in r.rms_nm))
         print("  rre_pct " + " ".join(f"{v:6.1f}" for v in r.rre_pct))
+    if not args.drive_gains and any(list(m.drive_gains) == list(spec.drive_gains) for _, m in models):
+        note = spec.nominal_note(("torque_constant", "gear_ratio"))
+        if note:  # measured torques = the robot file's drive gains × current
+            print(note)
     if args.json_out:
         payload = dict(results[0][1].as_dict(), params=str(results[0][0]))
         if len(results) > 1:

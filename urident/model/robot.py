@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterable
 
 import numpy as np
 
@@ -21,8 +21,14 @@ from urident.yamlio import Fields, load_yaml
 
 ROBOTS_DIR = Path(__file__).parent / "robots"
 
-_TOP_KEYS = {"name", "description", "generation", "controller_rate_hz", "controller_version",
-             "gravity", "dh", "base_collision", "tool", "joints", "allowed_contacts"}
+_TOP_KEYS = {"name", "description", "model", "generation", "controller_rate_hz", "controller_version",
+             "reach_m", "payload_kg", "nominal", "gravity", "dh", "base_collision", "tool", "joints",
+             "allowed_contacts"}
+# Per-joint values a robot file may mark as approximations (`nominal: [...]`), with report wording.
+NOMINAL_KEYS = {"inertia_com": "link inertias", "rotor_inertia": "rotor inertias",
+                "viscous_friction": "viscous friction", "coulomb_friction": "Coulomb friction",
+                "torque_constant": "torque constants", "gear_ratio": "gear ratios",
+                "acceleration_limit": "acceleration limits", "torque_limit": "torque limits"}
 _JOINT_KEYS = {"name", "xyz", "rpy", "axis", "position_limits", "velocity_limit",
                "acceleration_limit", "torque_limit", "gear_ratio", "torque_constant",
                "rotor_inertia", "viscous_friction", "coulomb_friction", "link"}
@@ -80,6 +86,10 @@ class RobotSpec:
     allowed_contacts: frozenset[frozenset[str]]
     dh: dict[str, np.ndarray]
     source: Path
+    model: str = ""                     # arm model as UR names it ("UR5e"); the dashboard drops the "e"
+    reach_m: float | None = None        # datasheet reach [m]
+    payload_kg: float | None = None     # datasheet payload class [kg]
+    nominal: frozenset[str] = frozenset()  # NOMINAL_KEYS whose values are approximations
     arrays: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
@@ -110,6 +120,23 @@ class RobotSpec:
         return tuple(j.name for j in self.joints)
 
     @property
+    def dashboard_model(self) -> str:
+        """What the dashboard's ``get robot model`` answers: e-Series controllers report the
+        family name ("UR5" for a UR5e), UR20/UR30 and CB3 arms their own name."""
+        model = self.model or self.name.upper()
+        if self.generation == "e-series" and model[-1:] in ("e", "E"):
+            return model[:-1]
+        return model
+
+    def nominal_note(self, keys: Iterable[str] | None = None) -> str | None:
+        """One line naming this robot's nominal values among ``keys`` (default: all), or None."""
+        marked = [k for k in NOMINAL_KEYS if k in self.nominal and (keys is None or k in keys)]
+        if not marked:
+            return None
+        return (f"robot file '{self.name}': nominal values, not manufacturer data: "
+                f"{', '.join(NOMINAL_KEYS[k] for k in marked)}")
+
+    @property
     def nominal_params(self) -> np.ndarray:
         """The paper's 78-vector (eq. 39-40) of this robot's nominal parameters."""
         return standard_from_links(self)
@@ -120,7 +147,7 @@ def available_robots() -> list[str]:
 
 
 def load_robot(name_or_path: str | Path) -> RobotSpec:
-    """Load a robot by name (``ur5``, ``ur5e``, ``ur10e``) or from a YAML file path."""
+    """Load a robot by name (``ur5e``, …: :func:`available_robots`) or from a YAML file path."""
     text = str(name_or_path)
     if text.endswith((".yaml", ".yml")) or "/" in text:
         path = Path(text)  # missing, a directory, unreadable: load_yaml names the file
@@ -165,6 +192,14 @@ def _parse(path: Path) -> RobotSpec:
     dh = reader.get(data, "dh", dict)
     reader.keys(dh, {"d", "a", "alpha"}, "dh")
     rate = float(reader.number(data, "controller_rate_hz", "", positive=True))
+    nominal = data.get("nominal", []) or []
+    if not isinstance(nominal, list) or any(not isinstance(k, str) or k not in NOMINAL_KEYS for k in nominal):
+        raise reader.fail("nominal", f"must be a list of per-joint keys from: {', '.join(NOMINAL_KEYS)}")
+    model = data.get("model", "")
+    if not isinstance(model, str):
+        raise reader.fail("model", "must be a string such as UR5e")
+    optional = {k: float(reader.number(data, k, "", positive=True)) if k in data else None
+                for k in ("reach_m", "payload_kg")}
     return RobotSpec(
         name=reader.get(data, "name", str),
         description=str(data.get("description", "")),
@@ -179,6 +214,9 @@ def _parse(path: Path) -> RobotSpec:
         allowed_contacts=frozenset(allowed),
         dh={k: reader.vector(dh, k, "dh", N_JOINTS) for k in ("d", "a", "alpha")},
         source=path,
+        model=model,
+        nominal=frozenset(nominal),
+        **optional,
     )
 
 

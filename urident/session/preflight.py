@@ -45,12 +45,11 @@ def check_controller(spec: RobotSpec, version: tuple[int, ...], rate_hz: float,
                           f"of '{spec.name}' says {spec.controller_rate_hz:g} Hz")
     if robot_model:
         reported = robot_model.strip().lower().replace(" ", "")
-        expected = spec.name.lower()
-        # e-Series dashboards report the family name ("UR5") for a UR5e.
-        family = expected[:-1] if spec.generation == "e-series" and expected.endswith("e") else expected
-        if reported not in (expected, family):
+        # The file's arm model ("UR5e"), as e-Series dashboards report it ("UR5").
+        expected = (spec.model or spec.name).lower()
+        if reported not in (expected, spec.dashboard_model.lower()):
             raise SafetyError(f"the controller reports robot model '{robot_model.strip()}', "
-                              f"but --robot is '{spec.name}'")
+                              f"but --robot is '{spec.name}' ({spec.model or spec.name})")
 
 
 def check_robot_state(robot_mode: int, safety_mode: int, safety_bits: int) -> None:

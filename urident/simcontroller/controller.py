@@ -85,7 +85,7 @@ class ControllerConfig:
     seed: int = 0
     effects_path: str | None = None
     initial_q: list[float] | None = None
-    serial_number: str = "20235500001"
+    serial_number: str | None = None   # None: one that matches the robot (dashboard.serial_number)
 
 
 class Controller:

@@ -19,6 +19,14 @@ WELCOME = "Connected: Universal Robots Dashboard Server"
 REQUEST_TIMEOUT_S = 1.0
 
 
+def serial_number(spec) -> str:
+    """A plausible serial for the emulated arm: year, model number, generation digit (3 CB3,
+    5 e-Series), sequence; a UR5e is 20235500001, a CB3 UR3 20163300001."""
+    digits = "".join(ch for ch in spec.dashboard_model if ch.isdigit()) or "0"
+    year, generation = ("2016", "3") if spec.generation == "cb3" else ("2023", "5")
+    return f"{year}{digits}{generation}00001"
+
+
 class DashboardSession:
     """Replies for one dashboard connection; state changes run on the controller thread."""
 
@@ -43,9 +51,9 @@ class DashboardSession:
         if cmd == "version":
             return self.polyscope_version()
         if cmd == "get serial number":
-            return c.config.serial_number
+            return c.config.serial_number or serial_number(c.spec)
         if cmd == "get robot model":
-            return c.spec.name.upper().rstrip("E") if c.version[0] >= 5 else c.spec.name.upper()
+            return c.spec.dashboard_model
         if cmd == "is in remote control":
             return "false" if c.faults.no_remote else "true"
         if cmd == "stop":

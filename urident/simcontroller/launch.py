@@ -28,7 +28,7 @@ FAULT_HELP = (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", default="ur5e",
-                        help="robot name (ur5, ur5e, ur10e) or robot file; default ur5e")
+                        help="robot name (urident model --list) or robot file; default ur5e")
     parser.add_argument("--host", default="127.0.0.1",
                         help="loopback address to bind (one controller per address; default 127.0.0.1)")
     parser.add_argument("--version", dest="controller_version", default=None, metavar="VERSION",
