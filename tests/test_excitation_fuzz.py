@@ -9,6 +9,8 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from fuzz_helpers import key_paths
+
 from urident.errors import ConfigError
 from urident.excitation import FourierTrajectory, Limits, load_trajectory, trajectory_document
 from urident.excitation.fourier import base_frequency
@@ -34,17 +36,9 @@ REQUIRED = [("format",), ("format_version",), ("robot",), ("trajectory",), ("lim
 JUNK = st.sampled_from([None, [], {}, float("nan"), float("inf"), [[1.0]], {"x": 1}, [None], "", 10 ** 400])
 
 
-def _paths(node, prefix=()):
-    yield prefix
-    if isinstance(node, dict):
-        for k, v in node.items():
-            yield from _paths(v, prefix + (k,))
-    elif isinstance(node, list):
-        for i, v in enumerate(node):
-            yield from _paths(v, prefix + (i,))
 
 
-ALL_PATHS = [p for p in _paths(VALID) if p and p[0] != "urident_version"] + [("urident_version",)]
+ALL_PATHS = [p for p in key_paths(VALID) if p and p[0] != "urident_version"] + [("urident_version",)]
 # Leaves whose replacement by any junk value is invalid ('' is a valid robot? no: unknown robot).
 REPLACEABLE = [p for p in ALL_PATHS if p[0] in ("format", "format_version", "robot", "trajectory", "limits",
                                                 "urident_version", "optimization", "criteria", "check")]

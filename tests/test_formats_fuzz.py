@@ -6,6 +6,7 @@ with its line and key path."""
 from __future__ import annotations
 
 import re
+from functools import partial
 from pathlib import Path
 
 import pytest
@@ -20,12 +21,9 @@ from urident.logs import read_sidecar
 from urident.model import load_robot
 from urident.session import load_experiment_config
 from urident.simcontroller.effects import parse_effects
-from functools import partial
+from urident.ident.prediction import load_prediction_params
 
-from urident.ident.prediction import load_prediction_params as _load_prediction_params
-from urident.model import load_robot as _load_robot
-
-load_prediction_params = partial(_load_prediction_params, spec=_load_robot("ur5"))
+from fuzz_helpers import key_paths
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -50,7 +48,7 @@ def _formats(params_text: str):
         "config": ((ROOT / "experiments/session.yaml").read_text(), load_experiment_config),
         "effects": ((ROOT / "urident/simcontroller/presets/realistic.yaml").read_text(), parse_effects),
         "sidecar": ((ROOT / "logs/sample_ident.yaml").read_text(), read_sidecar),
-        "prediction": ("params: [1.0, 2.0, 3.0]\n", load_prediction_params),
+        "prediction": ("params: [1.0, 2.0, 3.0]\n", partial(load_prediction_params, spec=load_robot("ur5"))),
     }
 
 
@@ -60,14 +58,6 @@ JUNK = st.one_of(st.none(), st.booleans(), st.integers(-10**30, 10**30), st.floa
                  st.just(10**400), st.dictionaries(st.text(max_size=4), st.integers(), max_size=2))
 
 
-def _paths(node, prefix=()):
-    yield prefix
-    if isinstance(node, dict):
-        for k, v in node.items():
-            yield from _paths(v, prefix + (k,))
-    elif isinstance(node, list):
-        for i, v in enumerate(node[:8]):
-            yield from _paths(v, prefix + (i,))
 
 
 def _replace(node, path, value):
@@ -95,7 +85,7 @@ FUZZ = settings(max_examples=40, deadline=None, suppress_health_check=[HealthChe
 def test_a_mutated_value_loads_or_fails_in_one_line(tmp_path, params_text, name, pick, value, delete):
     text, loader = _formats(params_text)[name]
     doc = yaml.safe_load(text)
-    paths = [p for p in _paths(doc) if p]
+    paths = [p for p in key_paths(doc, max_items=8) if p]
     where = paths[pick % len(paths)]
     if delete:
         parent = doc

@@ -5,6 +5,7 @@ with one line naming the file; physically impossible robot files are rejected na
 from __future__ import annotations
 
 import re
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -18,12 +19,7 @@ from urident.logs import LOG_FIELDS, LogWriter, load_log
 from urident.model import load_robot
 from urident.session import load_experiment_config
 from urident.simcontroller.effects import parse_effects
-from functools import partial
-
-from urident.ident.prediction import load_prediction_params as _load_prediction_params
-from urident.model import load_robot as _load_robot
-
-load_prediction_params = partial(_load_prediction_params, spec=_load_robot("ur5"))
+from urident.ident.prediction import load_prediction_params
 from urident.yamlio import parse_yaml
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -71,7 +67,8 @@ def test_duplicate_keys_in_the_other_formats(tmp_path):
         ("fx.yaml", "effects:\n  - name: stribeck\n    joints: [1]\n    joints: [2]\n", parse_effects,
          ConfigError, "effects[0].joints"),
         ("p.yaml", "format: urident-params\nrobot: ur5\nrobot: ur10e\n", load_params, ConfigError, "robot"),
-        ("v.yaml", "params: [1, 2]\nparams: [3]\n", load_prediction_params, ConfigError, "params"),
+        ("v.yaml", "params: [1, 2]\nparams: [3]\n", partial(load_prediction_params, spec=load_robot("ur5")), ConfigError,
+         "params"),
     ]
     for name, text, loader, error, key in cases:
         path = tmp_path / name

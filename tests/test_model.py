@@ -8,6 +8,7 @@ import pytest
 from urident.errors import ConfigError, UnknownRobotError
 from urident.model import available_robots, joint_torques, load_robot, parameter_names, regressor
 from urident.model.base import base_parameters
+from urident.model.check import dh_poses
 from urident.model.kinematics import frame_poses
 from urident.model.regressor import kernel_available
 from urident.model.parameters import body_params
@@ -34,14 +35,6 @@ def random_physical_params(rng, spec):
     return p
 
 
-def dh_frames(spec, q):
-    out, m = [], np.eye(4)
-    for d, a, alpha, qi in zip(spec.dh["d"], spec.dh["a"], spec.dh["alpha"], q):
-        ct, st, ca, sa = np.cos(qi), np.sin(qi), np.cos(alpha), np.sin(alpha)
-        m = m @ np.array([[ct, -st * ca, st * sa, a * ct], [st, ct * ca, -ct * sa, a * st],
-                          [0, sa, ca, d], [0, 0, 0, 1]])
-        out.append(m.copy())
-    return out
 
 
 @pytest.mark.parametrize("name", ROBOTS)
@@ -50,7 +43,7 @@ def test_frames_reproduce_ur_dh_kinematics(name, rng):
     base_to_controller = np.diag([-1.0, -1.0, 1.0])  # K_0 is the controller base rotated by pi about z
     for q in rng.uniform(-np.pi, np.pi, (20, 6)):
         _, pos = frame_poses(spec, q[None])
-        tool_dh = dh_frames(spec, q)[-1][:3, 3]
+        tool_dh = dh_poses(spec, q)[-1][:3, 3]
         np.testing.assert_allclose(base_to_controller @ pos[0, 6], tool_dh, atol=1e-12)
 
 
