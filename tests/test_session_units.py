@@ -38,11 +38,26 @@ def test_monitor_tracking_error_names_the_joint():
     assert "joint 4" in reason and "0.300" in reason
 
 
-def test_monitor_stale_timestamps():
+def test_monitor_frozen_timestamp_is_stale_data():
+    """Packages keep coming (the noisy currents change) but the controller clock stands still."""
     m = monitor(max_stale_periods=5)
-    assert m.check(Q, Q, 1.0, 0, 2, None) is None
-    reasons = [m.check(Q, Q, 1.0, 0, 2, None) for _ in range(5)]
-    assert reasons[:4] == [None] * 4 and "stale data" in reasons[4]
+    rng = np.random.default_rng(0)
+    assert m.check(Q, Q, 1.0, 0, 2, None, rng.normal(size=6)) is None
+    reasons = [m.check(Q, Q, 1.0, 0, 2, None, rng.normal(size=6)) for _ in range(5)]
+    assert reasons[:4] == [None] * 4 and "stale data: controller timestamp frozen" in reasons[4]
+
+
+def test_monitor_missing_packages_are_late_samples_not_frozen_time():
+    """The same package seen again (nothing new arrived) is a latency spike, named as such."""
+    m = monitor(max_stale_periods=100)
+    current = np.arange(6.0)
+    assert m.check(Q, Q, 1.0, 0, 2, None, current) is None
+    reasons = [m.check(Q, Q, 1.0, 0, 2, None, current.copy()) for _ in range(100)]
+    assert reasons[:99] == [None] * 99
+    assert reasons[99] == "controller samples late: no sample for 0.20 s"
+    # Samples resume: the count starts again.
+    assert m.check(Q, Q, 1.2, 0, 2, None, current + 1) is None
+    assert m.check(Q, Q, 1.2, 0, 2, None, current + 1) is None
 
 
 def test_monitor_late_cycles_consecutive_and_fraction():

@@ -43,7 +43,8 @@ class GapSet:
 
 def build_set(recordings: Sequence, spec, drive_gains=None, config=None, what: str = "logs") -> GapSet:
     """Prepare ``recordings`` (each filtered on its own) and cut their auxiliary signals alike."""
-    from urident.ident import PreprocessConfig, concatenate, preprocess
+    from urident.ident import PreprocessConfig, concatenate
+    from urident.ident.preprocess import preprocess_pieces
 
     recordings = list(recordings)
     if not recordings:
@@ -52,14 +53,15 @@ def build_set(recordings: Sequence, spec, drive_gains=None, config=None, what: s
     if config.decimate != 1:
         raise ConfigError("gap diagnosis needs every sample (decimate = 1)")
     parts, run_time, temps, moments = [], [], [], []
-    for rec in recordings:
-        p = preprocess(rec, spec, config, drive_gains)
-        first, last = p.provenance[0].samples_used
-        parts.append(p)
-        t = np.asarray(rec.t, float)
-        run_time.append(t[first:last] - t[0])
-        temps.append(None if rec.temperature is None else np.asarray(rec.temperature, float)[first:last])
-        moments.append(None if rec.target_moment is None else np.asarray(rec.target_moment, float)[first:last])
+    for recording in recordings:
+        t0 = float(recording.t[0])  # run time counts from the recording's start, across gaps
+        for rec, p in preprocess_pieces(recording, spec, config, drive_gains):
+            first, last = p.provenance[0].samples_used
+            parts.append(p)
+            t = np.asarray(rec.t, float)
+            run_time.append(t[first:last] - t0)
+            temps.append(None if rec.temperature is None else np.asarray(rec.temperature, float)[first:last])
+            moments.append(None if rec.target_moment is None else np.asarray(rec.target_moment, float)[first:last])
     prepared = concatenate(parts)
     temperature = None if any(x is None for x in temps) else np.vstack(temps)
     if temperature is not None and not np.all(np.isfinite(temperature)):

@@ -235,6 +235,27 @@ def preprocess(recording, spec, config: PreprocessConfig | None = None,
                     qdd[sl].copy(), torque[sl].copy(), gains, (prov,))
 
 
+def preprocess_pieces(recording, spec, config: PreprocessConfig | None = None,
+                      drive_gains: Sequence[float] | None = None) -> list[tuple[object, Prepared]]:
+    """:func:`preprocess` each gap-free piece of ``recording`` on its own (nothing is
+    differentiated or filtered across a gap), as several recordings are; returns
+    ``(piece, prepared)`` pairs. Pieces too short or at rest are left out when another is usable."""
+    from urident.logs.gaps import split_at_gaps
+
+    pieces = split_at_gaps(recording)
+    if len(pieces) == 1:
+        return [(recording, preprocess(recording, spec, config, drive_gains))]
+    out, first_error = [], None
+    for piece in pieces:
+        try:
+            out.append((piece, preprocess(piece, spec, config, drive_gains)))
+        except LogFormatError as exc:
+            first_error = first_error or exc
+    if not out:
+        raise first_error
+    return out
+
+
 def concatenate(parts: Sequence[Prepared]) -> Prepared:
     """Several prepared logs as one data set (segments numbered in order)."""
     if not parts:

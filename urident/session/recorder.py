@@ -29,12 +29,14 @@ from urident.rtde import protocol as rp
 RTDE_PORT = 30004
 READ_TIMEOUT_S = 2.5
 SESSION_STOP_WAIT_S = 15.0  # after a lost connection, wait this long for the session's verdict
+MAX_GAPS_LISTED = 1000      # the sidecar lists this many gaps; ``gap_count`` counts them all
 
 
 @dataclass(frozen=True)
 class RecorderStats:
     n_samples: int
     missed_samples: int          # gaps in the controller timestamps, in periods
+    gaps: tuple[dict, ...]       # where: after_s, resume_s, missing_periods
     first_timestamp: float | None
     last_timestamp: float | None
     fields: tuple[str, ...]
@@ -89,14 +91,46 @@ class RtdeRecorder:
 
     def _kill(self) -> None:
         if self._process is not None and self._process.is_alive():
-            self._process.terminate()
+            self._process.kill()  # it ignores SIGTERM (see _record_main)
             self._process.join(5)
 
 
+def session_death(pid: int) -> str:
+    """Why the session process ``pid`` (our parent) is gone, as far as can be told: a dead
+    process stays a zombie until its own parent reaps it, and ``/proc/PID/stat`` then holds its
+    wait status (field 52, Linux ≥ 3.5)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+        fields = stat[stat.rindex(")") + 2:].split()   # from field 3 (state) on
+        if fields[0] == "Z" and len(fields) >= 50:
+            status = int(fields[49])
+            if os.WIFSIGNALED(status):
+                signum = os.WTERMSIG(status)
+                name = signal.Signals(signum).name if signum in signal.Signals._value2member_map_ else "?"
+                return f"session process died (killed by signal {signum}, {name})"
+            if os.WIFEXITED(status):
+                return f"session process died (exit code {os.WEXITSTATUS(status)})"
+    except (OSError, ValueError, IndexError):
+        pass
+    return "session process died"
+
+
+def _stop_orphaned_program(host: str) -> str:
+    """The session died with the program possibly running: stop it through the dashboard."""
+    from urident.session.dashboard import ensure_stopped
+
+    notes = ensure_stopped(host, settle_s=1.0, stop_first=True)
+    unsure = [n for n in notes if "check the robot" in n]
+    return unsure[-1] if unsure else "program stopped through the dashboard"
+
+
 def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, parent_pid: int) -> None:
-    # Ctrl-C reaches the whole process group: the session decides when the recording ends.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # Ctrl-C, SIGTERM and SIGHUP reach the whole process group (or a terminal's): the session
+    # decides when the recording ends, and if the session itself dies the recorder notices.
+    for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(signum, signal.SIG_IGN)
     from urident.logs import LOG_FIELDS, LogWriter
+    from urident.logs.gaps import Gap, missing_periods
 
     try:
         sock, recipe, reader = _connect(host, rate_hz, [f.name for f in LOG_FIELDS])
@@ -106,20 +140,26 @@ def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, pare
     fields = [f for f in LOG_FIELDS if f.name in recipe.names]
     writer = LogWriter(out, fields=fields, metadata=metadata, overwrite=True)
     period = 1.0 / rate_hz
-    n = missed = 0
+    n = missed = gap_count = 0
+    gaps: list[dict] = []
     first = last = None
     status, reason, extra = "aborted", None, {}
     ready_sent = False
+    orphaned = False
     try:
         while True:
             if conn.poll():
-                message = conn.recv()
+                try:
+                    message = conn.recv()
+                except (EOFError, OSError):  # the session's end of the pipe closed: it died
+                    orphaned = True
+                    break
                 if message[0] == "stop":
                     _, status, reason, extra = message
                     _drain(sock, reader, recipe, writer)  # what arrived before the stop
                     break
             if os.getppid() != parent_pid:
-                reason = "the session process ended without closing the log"
+                orphaned = True
                 break
             try:
                 data = sock.recv(65536)
@@ -130,11 +170,14 @@ def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, pare
             if data == b"":  # the controller closed the connection
                 reason = "the controller closed the recorder's RTDE connection"
                 # The session's stop message carries the status and the real reason.
-                if conn.poll(SESSION_STOP_WAIT_S):
-                    message = conn.recv()
-                    if message[0] == "stop":
-                        _, status, session_reason, extra = message
-                        reason = session_reason or reason
+                try:
+                    if conn.poll(SESSION_STOP_WAIT_S):
+                        message = conn.recv()
+                        if message[0] == "stop":
+                            _, status, session_reason, extra = message
+                            reason = session_reason or reason
+                except (EOFError, OSError):
+                    orphaned = True
                 break
             for kind, payload in reader.feed(data):
                 if kind != rp.DATA_PACKAGE:
@@ -142,9 +185,12 @@ def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, pare
                 values = recipe.unpack(payload)
                 stamp = values["timestamp"]
                 if last is not None:
-                    steps = round((stamp - last) / period)
-                    if steps > 1:
-                        missed += steps - 1
+                    lost = missing_periods(stamp - last, period)
+                    if lost:
+                        missed += lost
+                        gap_count += 1
+                        if len(gaps) < MAX_GAPS_LISTED:
+                            gaps.append(Gap(n, last, stamp, lost).as_dict())
                 if writer.append(values):
                     n += 1
                     first = stamp if first is None else first
@@ -156,7 +202,13 @@ def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, pare
     except Exception as exc:  # noqa: BLE001 - the log must be closed whatever happens
         reason = f"recorder error: {type(exc).__name__}: {exc}"
         status = "aborted"
+        orphaned = orphaned or os.getppid() != parent_pid
     finally:
+        if orphaned:
+            # Nobody else will stop the robot: the session process is gone.
+            status = "aborted"
+            reason = f"{session_death(parent_pid)}; {_stop_orphaned_program(host)}"
+            _drain(sock, reader, recipe, writer)  # what the controller sent until the stop
         try:
             sock.sendall(rp.frame(rp.CONTROL_PACKAGE_PAUSE))
         except OSError:
@@ -166,9 +218,11 @@ def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, pare
         late = int(extra.pop("late_cycles", 0) or 0)
         if late:
             writer.mark_late_cycle(late)
-        extra["recorder"] = {"missed_samples": missed, "first_timestamp": first, "last_timestamp": last}
+        extra["recorder"] = {"missed_samples": missed, "gap_count": gap_count, "gaps": gaps,
+                             "first_timestamp": first, "last_timestamp": last}
         writer.close(status=status if status else "aborted", abort_reason=reason, extra=extra)
-        stats = RecorderStats(n, missed, first, last, tuple(f.name for f in fields), status, reason)
+        stats = RecorderStats(n, missed, tuple(gaps), first, last, tuple(f.name for f in fields),
+                              status, reason)
         try:
             if not ready_sent:
                 conn.send(("error", reason or "no data received"))
