@@ -18,6 +18,7 @@ import os
 import signal
 import socket
 import struct
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,6 +30,8 @@ from urident.rtde import protocol as rp
 RTDE_PORT = 30004
 READ_TIMEOUT_S = 2.5
 SESSION_STOP_WAIT_S = 15.0  # after a lost connection, wait this long for the session's verdict
+WATCH_PARENT_S = 10.0       # after the log is closed, wait this long for the session to exit …
+WATCH_SETTLE_S = 2.0        # … then the program must report STOPPED this long
 MAX_GAPS_LISTED = 1000      # the sidecar lists this many gaps; ``gap_count`` counts them all
 
 
@@ -76,6 +79,9 @@ class RtdeRecorder:
 
     def stop(self, status: str, abort_reason: str | None, extra: dict[str, Any],
              timeout_s: float = 10.0) -> RecorderStats | None:
+        """Close the log. A watcher forked from the recorder then outlives this process: ur_rtde's
+        clients (a broken one's reconnect thread re-uploads the control script) live until it
+        ends, so once it has ended the watcher makes sure the controller's program stays stopped."""
         if self._process is None:
             return None
         try:
@@ -209,6 +215,8 @@ def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, pare
             status = "aborted"
             reason = f"{session_death(parent_pid)}; {_stop_orphaned_program(host)}"
             _drain(sock, reader, recipe, writer)  # what the controller sent until the stop
+            # The session cannot say it any more: the recorder shares its terminal.
+            _say(f"urident: error: run aborted: {reason}; {writer.n_samples} samples kept in {out}")
         try:
             sock.sendall(rp.frame(rp.CONTROL_PACKAGE_PAUSE))
         except OSError:
@@ -229,6 +237,57 @@ def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, pare
             conn.send(stats)
         except (BrokenPipeError, OSError):
             pass
+    if not orphaned and ready_sent and os.fork() == 0:
+        try:
+            conn.close()
+            _watch_program(host, parent_pid, out)
+        finally:
+            os._exit(0)
+
+
+def _say(line: str) -> None:
+    try:
+        print(line, file=sys.stderr, flush=True)
+    except (OSError, ValueError):
+        pass
+
+
+def _alive(pid: int) -> bool:
+    """``pid`` runs (a zombie has ended: it only waits to be reaped)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat[stat.rindex(")") + 2:].split()[0] != "Z"
+
+
+def _watch_program(host: str, parent_pid: int, out: str) -> None:
+    """After the session process exited (its ur_rtde clients with it), the controller's program
+    must be stopped and stay so; what had to be done is added to the sidecar. A session process
+    that lives on (the Python API, ``urident demo``) may start its next run: nothing is done then."""
+    from urident.logs import read_sidecar, sidecar_path
+    from urident.logs.sidecar import write_sidecar
+    from urident.session.dashboard import ensure_stopped
+
+    deadline = time.monotonic() + WATCH_PARENT_S
+    while _alive(parent_pid):
+        if time.monotonic() > deadline:
+            return
+        time.sleep(0.02)
+    death = session_death(parent_pid)
+    notes = ensure_stopped(host, WATCH_SETTLE_S)
+    if "signal" in death:  # it crashed after closing the log (ur_rtde can, after a lost link)
+        stopped = [n for n in notes if "check the robot" in n] or ["program stopped"]
+        _say(f"urident: error: {death} after the log was closed; {stopped[-1]}; the log "
+             f"{out} is complete up to the stop")
+    if notes:
+        path = sidecar_path(out)
+        data = read_sidecar(path)
+        extra = data.setdefault("extra", {}) or {}
+        extra["stop_problems"] = list(extra.get("stop_problems") or []) + [
+            f"after the session exited: {n}" for n in notes]
+        data["extra"] = extra
+        write_sidecar(path, data)
 
 
 def _drain(sock, reader, recipe, writer) -> None:

@@ -25,10 +25,8 @@ def links_abandoned() -> bool:
     return bool(_ABANDONED)
 
 
-# After a stop, the controller's program must report STOPPED for this long [s]; after a lost
-# link longer, since ur_rtde's reconnect thread re-uploads its control script when it gets through.
+# After a stop, the controller's program must report STOPPED for this long [s].
 STOP_SETTLE_S = 0.3
-LOST_LINK_SETTLE_S = 3.0
 
 # Output fields the session records (urident.logs.LOG_FIELDS), in ur_rtde's names.
 RECEIVE_VARIABLES = [
@@ -218,8 +216,10 @@ class RobotLink:
             self._lost = True
             problems.append("control connection lost: servoStop/stopScript could not be sent")
         # The controller's word, not ours: its program must be stopped and stay stopped.
-        settle = LOST_LINK_SETTLE_S if self._lost else STOP_SETTLE_S
-        problems += ensure_stopped(self.host, settle, stop_first=not connected)
+        # With broken clients, stop once and end the process soon (the recorder's watcher checks
+        # after it ended): lingering beside ur_rtde's reconnect thread crashed the process.
+        problems += ensure_stopped(self.host, STOP_SETTLE_S if connected else 0.0,
+                                   stop_first=not connected)
         return problems
 
     def close(self) -> list[str]:
