@@ -94,7 +94,7 @@ def test_killed_session_recorder_stops_the_program_and_names_the_death(files):
         time.sleep(1.0)
         assert playing(host)
         proc.send_signal(signal.SIGKILL)
-        proc.communicate(timeout=60)  # returns once the recorder closed the inherited pipes too
+        _, stderr = proc.communicate(timeout=60)  # once the recorder closed the inherited pipes too
         deadline = time.monotonic() + 30
         while read_sidecar(sidecar_path(out))["status"] == "running" and time.monotonic() < deadline:
             time.sleep(0.1)
@@ -105,6 +105,7 @@ def test_killed_session_recorder_stops_the_program_and_names_the_death(files):
     assert log.status == "aborted"
     assert reason.startswith("session process died (killed by signal 9"), reason
     assert "program stopped through the dashboard" in reason
+    assert one_line_error(stderr).startswith(f"urident: error: run aborted: {reason};")  # the recorder's
     assert states == {"STOPPED"}
     assert len(log.t) > 400 and np.allclose(np.diff(log.t), 0.002, atol=1e-6)
 
@@ -199,3 +200,31 @@ def test_ensure_stopped_stops_a_program_that_restarts():
     assert notes[0] == "program stopped through the dashboard"
     assert any("PLAYING after the stop: stopped it again" in n for n in notes), notes
     assert states == {"STOPPED"}
+
+
+def test_watcher_stops_a_program_restarted_after_the_session_ended(tmp_path):
+    """What the recorder's watcher does once the session process is gone: a program PLAYING then
+    (ur_rtde re-uploaded its script before the process ended) is stopped, and the sidecar says so."""
+    import shutil
+
+    from test_logs_gaps import SAMPLES
+    from urident.session.recorder import _watch_program
+
+    host = "127.0.0.70"
+    out = tmp_path / "watched.csv"
+    shutil.copy(SAMPLES / "sample_ident.csv", out)
+    shutil.copy(SAMPLES / "sample_ident.yaml", tmp_path / "watched.yaml")
+    with SimControllerProcess(host=host, robot="ur5e", extra_args=["--no-realtime"]):
+        import rtde_control
+
+        control = rtde_control.RTDEControlInterface(host)   # its control script is PLAYING
+        assert playing(host)
+        session = subprocess.Popen([sys.executable, "-c", "pass"])  # a session that has ended
+        session.wait()
+        _watch_program(host, session.pid, str(out))
+        states = program_states(host, watch_s=0.5)
+        control.disconnect()
+    assert states == {"STOPPED"}
+    notes = read_sidecar(sidecar_path(out))["extra"]["stop_problems"]
+    assert any(n.startswith("after the session exited: controller reported the program PLAYING")
+               for n in notes), notes
