@@ -132,3 +132,11 @@ def test_foreign_log_gaps_from_timestamps(tmp_path):
     gaps = recording_gaps(foreign)
     assert [(g.index, g.missing) for g in gaps] == [(500, 30)]
     assert main(["identify", str(path), "--robot", "ur5", "--out", str(tmp_path / "p.yaml")]) == 2
+
+
+def test_a_log_whose_writer_died_counts_as_aborted(logs, capsys):
+    running = copy_log(logs["ident"], logs["dir"] / "running.csv", status="running")
+    argv = ["identify", str(running), "--robot", "ur5", "--out", str(logs["dir"] / "p_run.yaml")]
+    assert main(argv) == 2
+    assert "its writer never closed it (status: running)" in one_line(capsys)
+    assert main(argv + ["--allow-aborted"]) == 0

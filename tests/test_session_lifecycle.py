@@ -228,3 +228,30 @@ def test_watcher_stops_a_program_restarted_after_the_session_ended(tmp_path):
     notes = read_sidecar(sidecar_path(out))["extra"]["stop_problems"]
     assert any(n.startswith("after the session exited: controller reported the program PLAYING")
                for n in notes), notes
+
+
+def test_latency_spike_is_named_late_samples_and_recorded_as_a_gap(files):
+    """latency@: the controller sends nothing for 0.2 s, then resumes with advancing timestamps.
+    That is not a frozen clock: the run stops on "controller samples late", the log records the
+    gap, and identify refuses the log."""
+    from urident.cli.main import main
+
+    host = "127.0.0.72"
+    out = files["dir"] / "latency.csv"
+    config = files["dir"] / "latency.yaml"
+    config.write_text(files["config"].read_text().replace("max_stale_periods: 250", "max_stale_periods: 50"))
+    with SimControllerProcess(host=host, robot="ur5e", initial_q=NEAR_START, faults=["latency@2.5:0.2"]):
+        r = run_cli(host, "ur5e", files["ur5e"], out, config, "--yes")
+        states = program_states(host, watch_s=0.5)
+    assert r.returncode == 4, r.stdout + r.stderr
+    line = one_line_error(r.stderr)
+    assert "controller samples late: no sample for 0.10 s" in line and "frozen" not in line, line
+    assert states == {"STOPPED"}
+    log = load_log(out)
+    recorder = log.metadata["extra"]["recorder"]
+    assert recorder["gap_count"] == 1 and 95 <= recorder["missed_samples"] <= 105
+    gap = recorder["gaps"][0]
+    assert gap["missing_periods"] == recorder["missed_samples"]
+    assert gap["resume_s"] - gap["after_s"] == pytest.approx(0.002 * (gap["missing_periods"] + 1), abs=1e-6)
+    assert main(["identify", str(out), "--robot", "ur5e", "--allow-aborted",
+                 "--out", str(files["dir"] / "latency_params.yaml")]) == 2

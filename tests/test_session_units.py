@@ -131,3 +131,43 @@ def test_experiment_config_errors(tmp_path):
     bad.write_text("monitors:\n  max_stale_periods: 2.5\n")
     with pytest.raises(ConfigError, match="whole number"):
         load_experiment_config(bad)
+
+
+class _SignalledLink:
+    """Our RobotLink's interface, with a signal arriving while the controller is being read."""
+
+    def __init__(self, signum):
+        self.signum = signum
+        self.closed = False
+
+    def connect_receive(self):
+        import os
+        import signal
+        import time
+
+        os.kill(os.getpid(), self.signum)
+        time.sleep(1.0)  # the handler raises here
+        raise AssertionError("the signal did not interrupt the session")
+
+    def close(self):
+        self.closed = True
+        return []
+
+
+@pytest.mark.parametrize("name", ["SIGTERM", "SIGHUP"])
+def test_signal_before_motion_is_one_line_exit_130(name, tmp_path):
+    import signal
+
+    from urident.errors import Interrupted
+    from urident.session import RunRequest, run_session
+
+    signum = getattr(signal, name)
+    before = signal.getsignal(signum)
+    link = _SignalledLink(signum)
+    request = RunRequest(robot="ur5e", host="127.0.0.1", trajectory=tmp_path / "t.yaml",
+                         out=tmp_path / "x.csv")
+    with pytest.raises(Interrupted) as info:
+        run_session(request, say=lambda _l: None, link=link)
+    assert str(info.value) == f"terminated by {name} before any motion: nothing was moved"
+    assert info.value.exit_code == 130 and link.closed
+    assert signal.getsignal(signum) is before
