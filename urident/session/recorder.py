@@ -101,23 +101,37 @@ class RtdeRecorder:
             self._process.join(5)
 
 
+def _proc_stat(pid: int) -> list[str] | None:
+    """Fields 3.. of ``/proc/PID/stat`` (state first), or None when there is no such process."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    return stat[stat.rindex(")") + 2:].split()
+
+
+def _alive(pid: int) -> bool:
+    """``pid`` runs (a zombie has ended: it only waits to be reaped)."""
+    fields = _proc_stat(pid)
+    return fields is not None and fields[0] != "Z"
+
+
 def session_death(pid: int) -> str:
     """Why the session process ``pid`` (our parent) is gone, as far as can be told: a dead
     process stays a zombie until its own parent reaps it, and ``/proc/PID/stat`` then holds its
     wait status (field 52, Linux ≥ 3.5)."""
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-        fields = stat[stat.rindex(")") + 2:].split()   # from field 3 (state) on
-        if fields[0] == "Z" and len(fields) >= 50:
-            status = int(fields[49])
-            if os.WIFSIGNALED(status):
-                signum = os.WTERMSIG(status)
-                name = signal.Signals(signum).name if signum in signal.Signals._value2member_map_ else "?"
-                return f"session process died (killed by signal {signum}, {name})"
-            if os.WIFEXITED(status):
-                return f"session process died (exit code {os.WEXITSTATUS(status)})"
-    except (OSError, ValueError, IndexError):
-        pass
+    fields = _proc_stat(pid)
+    if fields and fields[0] == "Z" and len(fields) >= 50 and fields[49].lstrip("-").isdigit():
+        status = int(fields[49])
+        if os.WIFSIGNALED(status):
+            signum = os.WTERMSIG(status)
+            try:
+                name = signal.Signals(signum).name
+            except ValueError:
+                name = "unknown signal"
+            return f"session process died (killed by signal {signum}, {name})"
+        if os.WIFEXITED(status):
+            return f"session process died (exit code {os.WEXITSTATUS(status)})"
     return "session process died"
 
 
@@ -250,15 +264,6 @@ def _say(line: str) -> None:
         print(line, file=sys.stderr, flush=True)
     except (OSError, ValueError):
         pass
-
-
-def _alive(pid: int) -> bool:
-    """``pid`` runs (a zombie has ended: it only waits to be reaped)."""
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return False
-    return stat[stat.rindex(")") + 2:].split()[0] != "Z"
 
 
 def _watch_program(host: str, parent_pid: int, out: str) -> None:
