@@ -253,7 +253,9 @@ def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, pare
             pass
     if not orphaned and ready_sent and os.fork() == 0:
         try:
-            conn.close()
+            # Keep only the terminal: an inherited copy of multiprocessing's sentinel pipe would
+            # make the session's join() wait for this watcher instead of the recorder.
+            os.closerange(3, os.sysconf("SC_OPEN_MAX"))
             _watch_program(host, parent_pid, out)
         finally:
             os._exit(0)
