@@ -345,7 +345,7 @@ def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion:
             if k == 0:
                 servo_timestamps.append(timestamp)
             abort_reason = monitor.check(q_cmd, np.asarray(q), timestamp, safety_bits, runtime_state,
-                                         work_s, link.actual_current())
+                                         work_s, link.actual_current)
             if live is not None:
                 live.push({"timestamp": timestamp, "actual_q": q, **link.stream_state()}, q_cmd)
             if abort_reason:
