@@ -89,6 +89,12 @@ class RtdeRecorder:
             stats = self._conn.recv() if self._conn.poll(timeout_s) else None
         except (BrokenPipeError, EOFError, OSError):
             stats = None
+        if stats is not None:
+            # The log is closed: do not wait the ~0.3 s the recorder takes to exit (multiprocessing
+            # reaps it later), since after a lost link every moment beside ur_rtde's reconnect
+            # thread risks a crash.
+            self._process = None
+            return stats
         self._process.join(timeout_s)
         if self._process.is_alive():
             self._kill()
