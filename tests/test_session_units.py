@@ -142,7 +142,6 @@ class _SignalledLink:
 
     def connect_receive(self):
         import os
-        import signal
         import time
 
         os.kill(os.getpid(), self.signum)

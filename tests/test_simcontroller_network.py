@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from test_session_sim import files, make_trajectory  # noqa: F401 - fixture
+from test_session_sim import files  # noqa: F401 - the module's trajectory fixture
 from urident.cli.main import main
 from urident.excitation import load_trajectory
 from urident.simcontroller.launch import START_NEAR_OFFSET_RAD, loopback_problem

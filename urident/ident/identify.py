@@ -20,7 +20,7 @@ from urident.ident.estimate import Estimate
 from urident.ident.estimate_bounded import estimate_bounded
 from urident.ident.estimate_consistent import DEFAULT_REGULARISATION, estimate_consistent
 from urident.ident.estimate_ols import estimate_ols
-from urident.ident.preprocess import (PreprocessConfig, Prepared, Provenance, concatenate, preprocess,
+from urident.ident.preprocess import (PreprocessConfig, Prepared, Provenance, concatenate,
                                       preprocess_pieces)
 
 METHODS = ("ols", "bounded", "consistent")
