@@ -373,8 +373,6 @@ def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion:
         problems = link.stop()
         scheduling.__exit__(None, None, None)
         valid = periods[np.isfinite(periods)]
-        if request.record_periods:
-            np.save(request.out.with_suffix(".periods.npy"), valid)
         errors = np.abs(valid - period) if len(valid) else np.zeros(1)
         result.period_error_s = {"p50": float(np.percentile(errors, 50)),
                                  "p99": float(np.percentile(errors, 99)), "max": float(errors.max())}
@@ -388,6 +386,8 @@ def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion:
         stats = recorder.stop(status, abort_reason, extra)
         if live is not None:
             live.close(abort_reason)
+        if request.record_periods:  # after the log is closed: a failure here cannot leave it open
+            np.save(request.out.with_suffix(".periods.npy"), valid)
     n_samples = stats.n_samples if stats else 0
     result.status = status
     result.log_path = request.out
@@ -401,4 +401,6 @@ def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion:
     missed = stats.missed_samples if stats else 0
     say(f"completed: {n_samples} samples in {request.out} ({missed} missed, {monitor.late.late} "
         f"late cycles, max tracking error {monitor.max_tracking_error:.4f} rad)")
+    for problem in problems:
+        say(f"warning: while stopping: {problem}")
     return result
