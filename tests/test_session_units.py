@@ -38,11 +38,26 @@ def test_monitor_tracking_error_names_the_joint():
     assert "joint 4" in reason and "0.300" in reason
 
 
-def test_monitor_stale_timestamps():
+def test_monitor_frozen_timestamp_is_stale_data():
+    """Packages keep coming (the noisy currents change) but the controller clock stands still."""
     m = monitor(max_stale_periods=5)
-    assert m.check(Q, Q, 1.0, 0, 2, None) is None
-    reasons = [m.check(Q, Q, 1.0, 0, 2, None) for _ in range(5)]
-    assert reasons[:4] == [None] * 4 and "stale data" in reasons[4]
+    rng = np.random.default_rng(0)
+    assert m.check(Q, Q, 1.0, 0, 2, None, rng.normal(size=6)) is None
+    reasons = [m.check(Q, Q, 1.0, 0, 2, None, rng.normal(size=6)) for _ in range(5)]
+    assert reasons[:4] == [None] * 4 and "stale data: controller timestamp frozen" in reasons[4]
+
+
+def test_monitor_missing_packages_are_late_samples_not_frozen_time():
+    """The same package seen again (nothing new arrived) is a latency spike, named as such."""
+    m = monitor(max_stale_periods=100)
+    current = np.arange(6.0)
+    assert m.check(Q, Q, 1.0, 0, 2, None, current) is None
+    reasons = [m.check(Q, Q, 1.0, 0, 2, None, current.copy()) for _ in range(100)]
+    assert reasons[:99] == [None] * 99
+    assert reasons[99] == "controller samples late: no sample for 0.20 s"
+    # Samples resume: the count starts again.
+    assert m.check(Q, Q, 1.2, 0, 2, None, current + 1) is None
+    assert m.check(Q, Q, 1.2, 0, 2, None, current + 1) is None
 
 
 def test_monitor_late_cycles_consecutive_and_fraction():
@@ -116,3 +131,42 @@ def test_experiment_config_errors(tmp_path):
     bad.write_text("monitors:\n  max_stale_periods: 2.5\n")
     with pytest.raises(ConfigError, match="whole number"):
         load_experiment_config(bad)
+
+
+class _SignalledLink:
+    """Our RobotLink's interface, with a signal arriving while the controller is being read."""
+
+    def __init__(self, signum):
+        self.signum = signum
+        self.closed = False
+
+    def connect_receive(self):
+        import os
+        import time
+
+        os.kill(os.getpid(), self.signum)
+        time.sleep(1.0)  # the handler raises here
+        raise AssertionError("the signal did not interrupt the session")
+
+    def close(self):
+        self.closed = True
+        return []
+
+
+@pytest.mark.parametrize("name", ["SIGTERM", "SIGHUP"])
+def test_signal_before_motion_is_one_line_exit_130(name, tmp_path):
+    import signal
+
+    from urident.errors import Interrupted
+    from urident.session import RunRequest, run_session
+
+    signum = getattr(signal, name)
+    before = signal.getsignal(signum)
+    link = _SignalledLink(signum)
+    request = RunRequest(robot="ur5e", host="127.0.0.1", trajectory=tmp_path / "t.yaml",
+                         out=tmp_path / "x.csv")
+    with pytest.raises(Interrupted) as info:
+        run_session(request, say=lambda _l: None, link=link)
+    assert str(info.value) == f"terminated by {name} before any motion: nothing was moved"
+    assert info.value.exit_code == 130 and link.closed
+    assert signal.getsignal(signum) is before

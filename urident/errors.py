@@ -35,10 +35,20 @@ class SafetyError(UridentError):
     exit_code = 3
 
 
+class ControllerUnreachable(SafetyError, ConnectionError):
+    """No controller answers at the address (or it failed before any motion); nothing moved."""
+
+
 class SessionAborted(UridentError):
     """A running session stopped the robot before the end (monitor, fault or operator)."""
 
     exit_code = 4
+
+
+class Interrupted(UridentError):
+    """A signal (SIGTERM, SIGHUP) ended the command before any motion."""
+
+    exit_code = 130
 
 
 class ConnectionLost(SessionAborted, ConnectionError):

@@ -3,8 +3,7 @@
 A :class:`GapSet` is :class:`urident.ident.Prepared` (filtered q̈, unfiltered measured torque
 τ = drive gains × raw current, rest trimmed) plus the logged signals that help explain a residual:
 time since the start of each run, joint temperatures and the controller's target moment, cut to
-the same samples. With a baseline parameters file (``params``) the sets are prepared by the one
-prediction path, :func:`urident.ident.predict_recordings`, as that file prescribes (rest trimmed).
+the same samples.
 """
 
 from __future__ import annotations
@@ -44,10 +43,11 @@ class GapSet:
 
 def build_set(recordings: Sequence, spec, drive_gains=None, config=None, what: str = "logs",
               params=None) -> GapSet:
-    """Prepare ``recordings`` (each filtered on its own) and cut their auxiliary signals alike;
-    ``params``: the baseline parameters whose preprocessing and drive gains to follow."""
-    from urident.ident import (PreprocessConfig, concatenate, predict_recordings, prediction_config,
-                               preprocess)
+    """Prepare ``recordings`` (each, and each gap-free piece of one, filtered on its own) and cut
+    their auxiliary signals alike; ``params``: the baseline parameters whose preprocessing and
+    drive gains to follow (through the one prediction path)."""
+    from urident.ident import PreprocessConfig, predict_recordings, prediction_config
+    from urident.ident.preprocess import concatenate, preprocess_pieces
 
     recordings = list(recordings)
     if not recordings:
@@ -58,14 +58,21 @@ def build_set(recordings: Sequence, spec, drive_gains=None, config=None, what: s
     if config.decimate != 1:
         raise ConfigError("gap diagnosis needs every sample (decimate = 1)")
     if params is not None:
-        prepared = predict_recordings(params, recordings, spec, config=config, drive_gains=drive_gains).data
+        prediction = predict_recordings(params, recordings, spec, config=config, drive_gains=drive_gains)
+        prepared, pieces = prediction.data, prediction.pieces
     else:
-        prepared = concatenate([preprocess(rec, spec, config, drive_gains) for rec in recordings])
+        parts, pieces = [], []
+        for k, recording in enumerate(recordings):
+            for offset, p in preprocess_pieces(recording, spec, config, drive_gains):
+                parts.append(p)
+                pieces.append((k, offset))
+        prepared = concatenate(parts)
     run_time, temps, moments = [], [], []
-    for rec, prov in zip(recordings, prepared.provenance):
-        first, last = prov.samples_used
+    for (k, offset), prov in zip(pieces, prepared.provenance):
+        rec = recordings[k]
+        first, last = offset + prov.samples_used[0], offset + prov.samples_used[1]
         t = np.asarray(rec.t, float)
-        run_time.append(t[first:last] - t[0])
+        run_time.append(t[first:last] - t[0])  # run time counts from the recording's start, across gaps
         temps.append(None if rec.temperature is None else np.asarray(rec.temperature, float)[first:last])
         moments.append(None if rec.target_moment is None else np.asarray(rec.target_moment, float)[first:last])
     temperature = None if any(x is None for x in temps) else np.vstack(temps)

@@ -20,7 +20,8 @@ from urident.ident.estimate import Estimate
 from urident.ident.estimate_bounded import estimate_bounded
 from urident.ident.estimate_consistent import DEFAULT_REGULARISATION, estimate_consistent
 from urident.ident.estimate_ols import estimate_ols
-from urident.ident.preprocess import PreprocessConfig, Prepared, Provenance, concatenate, preprocess
+from urident.ident.preprocess import (PreprocessConfig, Prepared, Provenance, concatenate,
+                                      preprocess_pieces)
 
 METHODS = ("ols", "bounded", "consistent")
 
@@ -64,8 +65,10 @@ class IdentifiedModel:
 
 def prepare(recordings: Iterable, spec, config: PreprocessConfig | None = None,
             drive_gains=None) -> Prepared:
-    """Preprocess and concatenate recordings (each filtered on its own)."""
-    return concatenate([preprocess(r, spec, config, drive_gains) for r in recordings])
+    """Preprocess and concatenate recordings (each filtered on its own, and each gap-free piece
+    of a recording with gaps on its own too)."""
+    return concatenate([p for r in recordings
+                        for _, p in preprocess_pieces(r, spec, config, drive_gains)])
 
 
 def _as_prepared(data) -> Prepared:

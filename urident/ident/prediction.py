@@ -38,7 +38,7 @@ from urident.ident.design import ModelConfig, column_expressions, column_names
 from urident.ident.identify import IdentifiedModel, check_compatible, predict, predict_prepared
 from urident.ident.metrics import metrics
 from urident.ident.preprocess import (CausalAcceleration, PreprocessConfig, Prepared, concatenate,
-                                      preprocess)
+                                      preprocess_pieces)
 from urident.ident.torque import resolve_drive_gains, torque_from_current
 from urident.model.robot import N_PARAMS as N_STANDARD
 
@@ -64,6 +64,7 @@ class Prediction:
     params: IdentifiedModel
     config: PreprocessConfig
     causal: bool = False
+    pieces: tuple[tuple[int, int], ...] = ()  # per part of ``data``: (recording index, first sample)
 
     @property
     def residual(self) -> np.ndarray:
@@ -79,9 +80,13 @@ class Prediction:
                                 e_n, rms, rre, self.data.provenance)
 
     def sample_index(self, k: int = 0) -> np.ndarray:
-        """Indices into the ``k``-th loaded recording of its samples in ``data``."""
-        first, last = self.data.provenance[k].samples_used
-        return np.arange(first, last, int(self.config.decimate))
+        """Indices into the ``k``-th loaded recording of its samples in ``data`` (gap-free pieces
+        in order)."""
+        step = int(self.config.decimate)
+        pieces = self.pieces or tuple((j, 0) for j in range(len(self.data.provenance)))
+        index = [np.arange(offset + prov.samples_used[0], offset + prov.samples_used[1], step)
+                 for (j, offset), prov in zip(pieces, self.data.provenance) if j == k]
+        return np.concatenate(index) if index else np.zeros(0, dtype=int)
 
 
 def _check_payload(payload) -> None:
@@ -112,8 +117,13 @@ def predict_recordings(params: IdentifiedModel, recordings, spec=None, *, payloa
         raise ConfigError("no recording to predict")
     config = config or prediction_config(params)
     gains = resolve_drive_gains(spec, params.drive_gains if drive_gains is None else drive_gains)
-    data = concatenate([preprocess(r, spec, config, gains, causal=causal) for r in recordings])
-    return Prediction(data, predict_prepared(params, spec, data), params, config, causal)
+    parts, pieces = [], []
+    for k, recording in enumerate(recordings):
+        for offset, p in preprocess_pieces(recording, spec, config, gains, causal=causal):
+            parts.append(p)
+            pieces.append((k, offset))
+    data = concatenate(parts)
+    return Prediction(data, predict_prepared(params, spec, data), params, config, causal, tuple(pieces))
 
 
 class StreamPredictor:

@@ -277,6 +277,30 @@ def preprocess(recording, spec, config: PreprocessConfig | None = None,
                     qdd[sl].copy(), torque[sl].copy(), gains, (prov,))
 
 
+def preprocess_pieces(recording, spec, config: PreprocessConfig | None = None,
+                      drive_gains: Sequence[float] | None = None,
+                      causal: bool = False) -> list[tuple[int, Prepared]]:
+    """:func:`preprocess` each gap-free piece of ``recording`` on its own (nothing is
+    differentiated or filtered across a gap), as several recordings are; returns
+    ``(offset, prepared)`` pairs, ``offset`` the piece's first sample in ``recording`` (add it to
+    a piece's ``samples_used``). Pieces too short or at rest are left out when another is usable."""
+    from urident.logs.gaps import piece_bounds
+
+    bounds = piece_bounds(recording)
+    if len(bounds) == 1:
+        return [(0, preprocess(recording, spec, config, drive_gains, causal=causal))]
+    out, first_error = [], None
+    for a, b in bounds:
+        try:
+            out.append((a, preprocess(recording.select(slice(a, b)), spec, config, drive_gains,
+                                      causal=causal)))
+        except LogFormatError as exc:
+            first_error = first_error or exc
+    if not out:
+        raise first_error
+    return out
+
+
 def concatenate(parts: Sequence[Prepared]) -> Prepared:
     """Several prepared logs as one data set (segments numbered in order)."""
     if not parts:

@@ -1,7 +1,7 @@
 """Shared command-line options for subcommands that read logs (identify, validate, gap, view).
 
-    add_log_arguments(parser)                     # --format, --columns, --rows, --drop-bad
-    rec = load_log_from_args(args.log, args, robot=args.robot)
+    add_log_arguments(parser)     # --format, --columns, --rows, --drop-bad, --allow-aborted, --allow-gaps
+    rec = load_log_from_args(args.log, args, robot=args.robot)   # refuses aborted/gapped logs unless allowed
 """
 
 from __future__ import annotations
@@ -12,8 +12,10 @@ from pathlib import Path
 from typing import TextIO
 
 from urident.cli.options import checked, row_range
+from urident.errors import LogFormatError
 
 from .foreign import PRESETS, parse_column_map
+from .gaps import describe_gaps, recording_gaps
 from .reader import describe_dropped, load_log
 from .recording import Recording
 
@@ -54,6 +56,19 @@ def add_log_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="drop corrupt rows (reported) instead of rejecting the log",
     )
+    group.add_argument(
+        "--allow-aborted",
+        dest="log_allow_aborted",
+        action="store_true",
+        help="use a log whose run was aborted (or whose writer died) instead of refusing it",
+    )
+    group.add_argument(
+        "--allow-gaps",
+        dest="log_allow_gaps",
+        action="store_true",
+        help="use a log with missing samples instead of refusing it; the pieces between gaps "
+        "are then processed separately",
+    )
 
 
 def load_log_from_args(
@@ -75,4 +90,23 @@ def load_log_from_args(
     line = describe_dropped(recording)
     if line:
         print(f"urident: warning: {line}", file=report or sys.stderr)
+    check_log_usable(recording, allow_aborted=getattr(args, "log_allow_aborted", False),
+                     allow_gaps=getattr(args, "log_allow_gaps", False))
     return recording
+
+
+def check_log_usable(recording: Recording, allow_aborted: bool = False,
+                     allow_gaps: bool = False) -> None:
+    """Refuse (one line) a log whose run did not complete or that misses samples, unless allowed."""
+    where = recording.source or "log"
+    status = recording.status
+    if status in ("aborted", "running") and not allow_aborted:
+        why = recording.metadata.get("abort_reason") if status == "aborted" else None
+        what = f"the run was aborted ({why})" if why else (
+            "the run was aborted" if status == "aborted" else
+            "its writer never closed it (status: running)")
+        raise LogFormatError(f"{where}: {what}; pass --allow-aborted to use it anyway")
+    gaps = recording_gaps(recording)
+    if gaps and not allow_gaps:
+        raise LogFormatError(f"{where}: {describe_gaps(gaps)}; pass --allow-gaps to use it "
+                             f"(the pieces between gaps are then processed separately)")

@@ -74,13 +74,18 @@ class RunMonitor:
         self.late = LateCycleCounter(period_s, config.late_tolerance_s)
         self._last_timestamp: float | None = None
         self._stale = 0
+        self._frozen = False
+        self._repeat_key: np.ndarray | None = None
         self.max_tracking_error = 0.0
         self.max_stale = 0
 
     def check(self, q_cmd: np.ndarray, q: np.ndarray, timestamp: float, safety_bits: int,
-              runtime_state: int, work_s: float | None = None) -> str | None:
+              runtime_state: int, work_s: float | None = None,
+              current=None) -> str | None:
         """The reason to abort after this sample, or None. ``work_s`` is the previous cycle's
-        work time (None before the first)."""
+        work time (None before the first); ``current`` (the measured currents, noisy in every
+        real package, or a function returning them, called only when the timestamp repeats)
+        tells a frozen controller clock from a package that did not come."""
         problem = safety_problem(int(safety_bits))
         if problem:
             return problem
@@ -95,13 +100,26 @@ class RunMonitor:
             return (f"tracking error {error[joint]:.3f} rad on joint {joint + 1} exceeds "
                     f"{self.config.max_tracking_error_rad} rad")
         if self._last_timestamp is not None and timestamp == self._last_timestamp:
+            # The same timestamp with the same values is the same package: no new sample came
+            # (late or lost); other values under the same timestamp mean the clock is frozen.
+            if callable(current):
+                current = current()
+            key = np.array(q if current is None else current, dtype=float)
+            if self._repeat_key is not None and not np.array_equal(key, self._repeat_key):
+                self._frozen = True
+            self._repeat_key = key
             self._stale += 1
             self.max_stale = max(self.max_stale, self._stale)
             if self._stale >= self.config.max_stale_periods:
-                return (f"stale data: controller timestamp frozen at {timestamp:.3f} s for "
-                        f"{self._stale} cycles")
+                if self._frozen:
+                    return (f"stale data: controller timestamp frozen at {timestamp:.3f} s for "
+                            f"{self._stale} cycles")
+                return (f"controller samples late: no sample for "
+                        f"{self._stale * self.period_s:.2f} s")
         else:
             self._stale = 0
+            self._frozen = False
+            self._repeat_key = None
         self._last_timestamp = timestamp
         if work_s is not None:
             self.late.record(work_s)

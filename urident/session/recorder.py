@@ -18,6 +18,7 @@ import os
 import signal
 import socket
 import struct
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,12 +30,16 @@ from urident.rtde import protocol as rp
 RTDE_PORT = 30004
 READ_TIMEOUT_S = 2.5
 SESSION_STOP_WAIT_S = 15.0  # after a lost connection, wait this long for the session's verdict
+WATCH_PARENT_S = 10.0       # after the log is closed, wait this long for the session to exit …
+WATCH_SETTLE_S = 2.0        # … then the program must report STOPPED this long
+MAX_GAPS_LISTED = 1000      # the sidecar lists this many gaps; ``gap_count`` counts them all
 
 
 @dataclass(frozen=True)
 class RecorderStats:
     n_samples: int
     missed_samples: int          # gaps in the controller timestamps, in periods
+    gaps: tuple[dict, ...]       # where: after_s, resume_s, missing_periods
     first_timestamp: float | None
     last_timestamp: float | None
     fields: tuple[str, ...]
@@ -74,6 +79,9 @@ class RtdeRecorder:
 
     def stop(self, status: str, abort_reason: str | None, extra: dict[str, Any],
              timeout_s: float = 10.0) -> RecorderStats | None:
+        """Close the log. A watcher forked from the recorder then outlives this process: ur_rtde's
+        clients (a broken one's reconnect thread re-uploads the control script) live until it
+        ends, so once it has ended the watcher makes sure the controller's program stays stopped."""
         if self._process is None:
             return None
         try:
@@ -81,6 +89,12 @@ class RtdeRecorder:
             stats = self._conn.recv() if self._conn.poll(timeout_s) else None
         except (BrokenPipeError, EOFError, OSError):
             stats = None
+        if stats is not None:
+            # The log is closed: do not wait the ~0.3 s the recorder takes to exit (multiprocessing
+            # reaps it later), since after a lost link every moment beside ur_rtde's reconnect
+            # thread risks a crash.
+            self._process = None
+            return stats
         self._process.join(timeout_s)
         if self._process.is_alive():
             self._kill()
@@ -89,14 +103,60 @@ class RtdeRecorder:
 
     def _kill(self) -> None:
         if self._process is not None and self._process.is_alive():
-            self._process.terminate()
+            self._process.kill()  # it ignores SIGTERM (see _record_main)
             self._process.join(5)
 
 
+def _proc_stat(pid: int) -> list[str] | None:
+    """Fields 3.. of ``/proc/PID/stat`` (state first), or None when there is no such process."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    return stat[stat.rindex(")") + 2:].split()
+
+
+def _alive(pid: int) -> bool:
+    """``pid`` runs (a zombie has ended: it only waits to be reaped)."""
+    fields = _proc_stat(pid)
+    return fields is not None and fields[0] != "Z"
+
+
+def session_death(pid: int) -> str:
+    """Why the session process ``pid`` (our parent) is gone, as far as can be told: a dead
+    process stays a zombie until its own parent reaps it, and ``/proc/PID/stat`` then holds its
+    wait status (field 52, Linux ≥ 3.5)."""
+    fields = _proc_stat(pid)
+    if fields and fields[0] == "Z" and len(fields) >= 50 and fields[49].lstrip("-").isdigit():
+        status = int(fields[49])
+        if os.WIFSIGNALED(status):
+            signum = os.WTERMSIG(status)
+            try:
+                name = signal.Signals(signum).name
+            except ValueError:
+                name = "unknown signal"
+            return f"session process died (killed by signal {signum}, {name})"
+        if os.WIFEXITED(status):
+            return f"session process died (exit code {os.WEXITSTATUS(status)})"
+    return "session process died"
+
+
+def _stop_orphaned_program(host: str) -> str:
+    """The session died with the program possibly running: stop it through the dashboard."""
+    from urident.session.dashboard import ensure_stopped
+
+    notes = ensure_stopped(host, settle_s=1.0, stop_first=True)
+    unsure = [n for n in notes if "check the robot" in n]
+    return unsure[-1] if unsure else "program stopped through the dashboard"
+
+
 def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, parent_pid: int) -> None:
-    # Ctrl-C reaches the whole process group: the session decides when the recording ends.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # Ctrl-C, SIGTERM and SIGHUP reach the whole process group (or a terminal's): the session
+    # decides when the recording ends, and if the session itself dies the recorder notices.
+    for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(signum, signal.SIG_IGN)
     from urident.logs import LOG_FIELDS, LogWriter
+    from urident.logs.gaps import Gap, missing_periods
 
     try:
         sock, recipe, reader = _connect(host, rate_hz, [f.name for f in LOG_FIELDS])
@@ -106,20 +166,26 @@ def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, pare
     fields = [f for f in LOG_FIELDS if f.name in recipe.names]
     writer = LogWriter(out, fields=fields, metadata=metadata, overwrite=True)
     period = 1.0 / rate_hz
-    n = missed = 0
+    n = missed = gap_count = 0
+    gaps: list[dict] = []
     first = last = None
     status, reason, extra = "aborted", None, {}
     ready_sent = False
+    orphaned = False
     try:
         while True:
             if conn.poll():
-                message = conn.recv()
+                try:
+                    message = conn.recv()
+                except (EOFError, OSError):  # the session's end of the pipe closed: it died
+                    orphaned = True
+                    break
                 if message[0] == "stop":
                     _, status, reason, extra = message
                     _drain(sock, reader, recipe, writer)  # what arrived before the stop
                     break
             if os.getppid() != parent_pid:
-                reason = "the session process ended without closing the log"
+                orphaned = True
                 break
             try:
                 data = sock.recv(65536)
@@ -130,11 +196,14 @@ def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, pare
             if data == b"":  # the controller closed the connection
                 reason = "the controller closed the recorder's RTDE connection"
                 # The session's stop message carries the status and the real reason.
-                if conn.poll(SESSION_STOP_WAIT_S):
-                    message = conn.recv()
-                    if message[0] == "stop":
-                        _, status, session_reason, extra = message
-                        reason = session_reason or reason
+                try:
+                    if conn.poll(SESSION_STOP_WAIT_S):
+                        message = conn.recv()
+                        if message[0] == "stop":
+                            _, status, session_reason, extra = message
+                            reason = session_reason or reason
+                except (EOFError, OSError):
+                    orphaned = True
                 break
             for kind, payload in reader.feed(data):
                 if kind != rp.DATA_PACKAGE:
@@ -142,9 +211,12 @@ def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, pare
                 values = recipe.unpack(payload)
                 stamp = values["timestamp"]
                 if last is not None:
-                    steps = round((stamp - last) / period)
-                    if steps > 1:
-                        missed += steps - 1
+                    lost = missing_periods(stamp - last, period)
+                    if lost:
+                        missed += lost
+                        gap_count += 1
+                        if len(gaps) < MAX_GAPS_LISTED:
+                            gaps.append(Gap(n, last, stamp, lost).as_dict())
                 if writer.append(values):
                     n += 1
                     first = stamp if first is None else first
@@ -156,7 +228,15 @@ def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, pare
     except Exception as exc:  # noqa: BLE001 - the log must be closed whatever happens
         reason = f"recorder error: {type(exc).__name__}: {exc}"
         status = "aborted"
+        orphaned = orphaned or os.getppid() != parent_pid
     finally:
+        if orphaned:
+            # Nobody else will stop the robot: the session process is gone.
+            status = "aborted"
+            reason = f"{session_death(parent_pid)}; {_stop_orphaned_program(host)}"
+            _drain(sock, reader, recipe, writer)  # what the controller sent until the stop
+            # The session cannot say it any more: the recorder shares its terminal.
+            _say(f"urident: error: run aborted: {reason}; {writer.n_samples} samples kept in {out}")
         try:
             sock.sendall(rp.frame(rp.CONTROL_PACKAGE_PAUSE))
         except OSError:
@@ -166,15 +246,61 @@ def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, pare
         late = int(extra.pop("late_cycles", 0) or 0)
         if late:
             writer.mark_late_cycle(late)
-        extra["recorder"] = {"missed_samples": missed, "first_timestamp": first, "last_timestamp": last}
+        extra["recorder"] = {"missed_samples": missed, "gap_count": gap_count, "gaps": gaps,
+                             "first_timestamp": first, "last_timestamp": last}
         writer.close(status=status if status else "aborted", abort_reason=reason, extra=extra)
-        stats = RecorderStats(n, missed, first, last, tuple(f.name for f in fields), status, reason)
+        stats = RecorderStats(n, missed, tuple(gaps), first, last, tuple(f.name for f in fields),
+                              status, reason)
         try:
             if not ready_sent:
                 conn.send(("error", reason or "no data received"))
             conn.send(stats)
         except (BrokenPipeError, OSError):
             pass
+    if not orphaned and ready_sent and os.fork() == 0:
+        try:
+            # Keep only the terminal: an inherited copy of multiprocessing's sentinel pipe would
+            # make the session's join() wait for this watcher instead of the recorder.
+            os.closerange(3, os.sysconf("SC_OPEN_MAX"))
+            _watch_program(host, parent_pid, out)
+        finally:
+            os._exit(0)
+
+
+def _say(line: str) -> None:
+    try:
+        print(line, file=sys.stderr, flush=True)
+    except (OSError, ValueError):
+        pass
+
+
+def _watch_program(host: str, parent_pid: int, out: str) -> None:
+    """After the session process exited (its ur_rtde clients with it), the controller's program
+    must be stopped and stay so; what had to be done is added to the sidecar. A session process
+    that lives on (the Python API, ``urident demo``) may start its next run: nothing is done then."""
+    from urident.logs import read_sidecar, sidecar_path
+    from urident.logs.sidecar import write_sidecar
+    from urident.session.dashboard import ensure_stopped
+
+    deadline = time.monotonic() + WATCH_PARENT_S
+    while _alive(parent_pid):
+        if time.monotonic() > deadline:
+            return
+        time.sleep(0.02)
+    death = session_death(parent_pid)
+    notes = ensure_stopped(host, WATCH_SETTLE_S)
+    if "signal" in death:  # it crashed after closing the log (ur_rtde can, after a lost link)
+        stopped = [n for n in notes if "check the robot" in n] or ["program stopped"]
+        _say(f"urident: error: {death} after the log was closed; {stopped[-1]}; the log "
+             f"{out} is complete up to the stop")
+    if notes:
+        path = sidecar_path(out)
+        data = read_sidecar(path)
+        extra = data.setdefault("extra", {}) or {}
+        extra["stop_problems"] = list(extra.get("stop_problems") or []) + [
+            f"after the session exited: {n}" for n in notes]
+        data["extra"] = extra
+        write_sidecar(path, data)
 
 
 def _drain(sock, reader, recipe, writer) -> None:

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from urident.errors import ConnectionLost, SafetyError
+from urident.errors import ConnectionLost, ControllerUnreachable, SafetyError
+from urident.session.dashboard import ensure_stopped
 
 # ur_rtde clients whose connection broke: ur_rtde crashes (SIGSEGV) when such an object is sent
 # commands, disconnected or destroyed while its reconnect thread runs, so they are kept here for
@@ -23,6 +24,9 @@ _ABANDONED: list = []
 def links_abandoned() -> bool:
     return bool(_ABANDONED)
 
+
+# After a stop, the controller's program must report STOPPED for this long [s].
+STOP_SETTLE_S = 0.3
 
 # Output fields the session records (urident.logs.LOG_FIELDS), in ur_rtde's names.
 RECEIVE_VARIABLES = [
@@ -75,11 +79,13 @@ class RobotLink:
             self.dashboard = dashboard_client.DashboardClient(self.host)
             self.dashboard.connect()
         except RuntimeError as exc:
-            raise ConnectionLost(f"cannot reach the dashboard server of {self.host}:29999 ({exc})") from None
+            raise ControllerUnreachable(f"no controller at {self.host}: cannot reach its dashboard "
+                                        f"server on port 29999 ({exc}); nothing moved") from None
         try:
             self.receive = rtde_receive.RTDEReceiveInterface(self.host, -1.0, RECEIVE_VARIABLES)
         except RuntimeError as exc:
-            raise ConnectionLost(f"cannot open RTDE to {self.host}:30004 ({exc})") from None
+            raise ControllerUnreachable(f"no controller at {self.host}: cannot open RTDE on port "
+                                        f"30004 ({exc}); nothing moved") from None
 
     def info(self) -> ControllerInfo:
         text = self._dashboard_call("polyscopeVersion")
@@ -98,7 +104,10 @@ class RobotLink:
         try:
             self.control = rtde_control.RTDEControlInterface(self.host, rate_hz)
         except RuntimeError as exc:
-            raise ConnectionLost(f"cannot start the control script on {self.host} ({exc})") from None
+            # The script may have started before the failure: leave it stopped.
+            notes = ensure_stopped(self.host, STOP_SETTLE_S)
+            raise ControllerUnreachable(f"cannot start the control script on {self.host} ({exc}); "
+                                        f"nothing moved" + "".join(f"; {n}" for n in notes)) from None
 
     def _dashboard_call(self, name: str, optional: bool = False):
         try:
@@ -146,6 +155,9 @@ class RobotLink:
 
     def actual_q(self) -> np.ndarray:
         return np.asarray(self.receive.getActualQ(), dtype=float)
+
+    def actual_current(self) -> list:
+        return self.receive.getActualCurrent()
 
     def modes(self) -> tuple[int, int, int]:
         """(robot_mode, safety_mode, safety_status_bits)."""
@@ -200,23 +212,15 @@ class RobotLink:
                     getattr(self.control, name)()
                 except Exception as exc:  # noqa: BLE001 - shutdown must try every step
                     problems.append(f"{name}: {exc}")
-            return problems
-        self._lost = True
-        problems.append("control connection lost: servoStop/stopScript could not be sent")
-        problems += self._dashboard_stop()
+        else:
+            self._lost = True
+            problems.append("control connection lost: servoStop/stopScript could not be sent")
+        # The controller's word, not ours: its program must be stopped and stay stopped.
+        # With broken clients, stop once and end the process soon (the recorder's watcher checks
+        # after it ended): lingering beside ur_rtde's reconnect thread crashed the process.
+        problems += ensure_stopped(self.host, STOP_SETTLE_S if connected else 0.0,
+                                   stop_first=not connected)
         return problems
-
-    def _dashboard_stop(self) -> list[str]:
-        import dashboard_client
-
-        try:
-            dashboard = dashboard_client.DashboardClient(self.host)
-            dashboard.connect()
-            dashboard.stop()
-            dashboard.disconnect()
-            return ["program stopped through the dashboard instead"]
-        except Exception as exc:  # noqa: BLE001
-            return [f"dashboard stop failed too ({exc}): check the robot"]
 
     def close(self) -> list[str]:
         problems = self.stop()

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import hashlib
 import os
+import signal
+import threading
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -20,7 +22,8 @@ from typing import Callable
 
 import numpy as np
 
-from urident.errors import ConfigError, ConnectionLost, SafetyError, SessionAborted
+from urident.errors import (ConfigError, ConnectionLost, ControllerUnreachable, Interrupted,
+                            SafetyError, SessionAborted)
 from urident.model import RobotSpec, load_robot
 from urident.session.config import ExperimentConfig
 from urident.session.monitors import RunMonitor, safety_problem
@@ -90,6 +93,52 @@ def plan_motion(spec: RobotSpec, trajectory_path: Path, rate_hz: float, repeat: 
     return PlannedMotion(spec, traj_file, np.arange(len(q_cmd)) * period, q_cmd)
 
 
+class Terminated(BaseException):
+    """SIGTERM or SIGHUP reached the session; raised in the main thread like KeyboardInterrupt
+    (a BaseException, so no ``except Exception`` on the way swallows it)."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.name = signal.Signals(signum).name
+
+
+class _SessionSignals:
+    """Ctrl-C, SIGTERM and SIGHUP end a session the same way: an exception in the main thread
+    that the session turns into a stop. While the robot is being stopped (:meth:`shielded`) a
+    further signal is only noted, so it cannot cut servoStop/stopScript short."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+    def __init__(self):
+        self.stopping = False
+        self.previous: dict[int, object] = {}
+
+    def _handle(self, signum, _frame) -> None:
+        if self.stopping:
+            return
+        if signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        raise Terminated(signum)
+
+    def __enter__(self) -> "_SessionSignals":
+        if threading.current_thread() is threading.main_thread():
+            for signum in self.SIGNALS:
+                self.previous[signum] = signal.signal(signum, self._handle)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for signum, handler in self.previous.items():
+            signal.signal(signum, handler)
+
+    @contextmanager
+    def shielded(self):
+        stopping, self.stopping = self.stopping, True
+        try:
+            yield
+        finally:
+            self.stopping = stopping
+
+
 def run_session(request: RunRequest, say: Callable[[str], None] = print,
                 confirm: Callable[[str], bool] | None = None,
                 live=None, link: RobotLink | None = None) -> RunResult:
@@ -99,40 +148,52 @@ def run_session(request: RunRequest, say: Callable[[str], None] = print,
     config = request.config
     link = link or RobotLink(request.host)
     result = RunResult(status="checked")
-    try:
-        link.connect_receive()
-        info = link.info()
-        result.info = info
-        check_controller(spec, info.version, info.rate_hz, info.robot_model)
-        robot_mode, safety_mode, safety_bits = link.modes()
-        check_robot_state(robot_mode, safety_mode, safety_bits)
-        if spec.generation == "e-series" and not link.in_remote_control():
-            raise SafetyError(f"{request.host} is in local control: switch the teach pendant to "
-                              f"remote control")
-        motion = plan_motion(spec, request.trajectory, info.rate_hz, request.repeat, config.rest_s)
-        approach = plan_approach(spec, link.actual_q(), motion.q_cmd[0],
-                                 config.approach.max_distance_rad,
-                                 _clearance_function(spec, motion.trajectory_file.limits))
-        result.approach = approach
-        say(f"{spec.description} at {request.host}: controller {info.version_text}, "
-            f"{info.rate_hz:g} Hz; trajectory {request.trajectory} passed every check at "
-            f"{info.rate_hz:g} Hz ({len(motion.q_cmd)} servo periods, {motion.t[-1]:.1f} s)")
-        say(f"approach: {approach.max_joint_distance_rad:.3f} rad on joint {approach.joint + 1} at "
-            f"{config.approach.speed_rad_s} rad/s"
-            + (f", collision margin {approach.min_margin_m:.3f} m" if approach.min_margin_m is not None else ""))
-        if request.check_only:
-            return result
-        if not request.assume_yes:
-            question = (f"Move the robot at {request.host} to the trajectory start and run "
-                        f"{motion.t[-1]:.1f} s of servoJ?")
-            if confirm is None or not confirm(question):
-                raise SafetyError("not confirmed: nothing was moved (pass --yes to skip the question)")
-        link.connect_control(info.rate_hz)
-        return _execute(request, spec, info, motion, link, result, say, live)
-    finally:
-        problems = link.close()
-        for problem in problems:
-            say(f"warning: while stopping: {problem}")
+    with _SessionSignals() as signals:
+        try:
+            return _check_and_run(request, spec, config, link, result, say, confirm, live, signals)
+        except Terminated as exc:  # before the run started (a run turns it into SessionAborted)
+            raise Interrupted(f"terminated by {exc.name} before any motion: nothing was moved") from None
+        except ConnectionLost as exc:  # before any motion: no run started
+            raise ControllerUnreachable(f"{exc}; nothing moved") from None
+        finally:
+            with signals.shielded():
+                problems = link.close()
+            for problem in problems:
+                say(f"warning: while stopping: {problem}")
+
+
+def _check_and_run(request: RunRequest, spec: RobotSpec, config: ExperimentConfig,
+                   link: RobotLink, result: RunResult, say, confirm, live,
+                   signals: _SessionSignals) -> RunResult:
+    link.connect_receive()
+    info = link.info()
+    result.info = info
+    check_controller(spec, info.version, info.rate_hz, info.robot_model)
+    robot_mode, safety_mode, safety_bits = link.modes()
+    check_robot_state(robot_mode, safety_mode, safety_bits)
+    if spec.generation == "e-series" and not link.in_remote_control():
+        raise SafetyError(f"{request.host} is in local control: switch the teach pendant to "
+                          f"remote control")
+    motion = plan_motion(spec, request.trajectory, info.rate_hz, request.repeat, config.rest_s)
+    approach = plan_approach(spec, link.actual_q(), motion.q_cmd[0],
+                             config.approach.max_distance_rad,
+                             _clearance_function(spec, motion.trajectory_file.limits))
+    result.approach = approach
+    say(f"{spec.description} at {request.host}: controller {info.version_text}, "
+        f"{info.rate_hz:g} Hz; trajectory {request.trajectory} passed every check at "
+        f"{info.rate_hz:g} Hz ({len(motion.q_cmd)} servo periods, {motion.t[-1]:.1f} s)")
+    say(f"approach: {approach.max_joint_distance_rad:.3f} rad on joint {approach.joint + 1} at "
+        f"{config.approach.speed_rad_s} rad/s"
+        + (f", collision margin {approach.min_margin_m:.3f} m" if approach.min_margin_m is not None else ""))
+    if request.check_only:
+        return result
+    if not request.assume_yes:
+        question = (f"Move the robot at {request.host} to the trajectory start and run "
+                    f"{motion.t[-1]:.1f} s of servoJ?")
+        if confirm is None or not confirm(question):
+            raise SafetyError("not confirmed: nothing was moved (pass --yes to skip the question)")
+    link.connect_control(info.rate_hz)
+    return _execute(request, spec, info, motion, link, result, say, live, signals)
 
 
 def _clearance_function(spec: RobotSpec, limits):
@@ -217,8 +278,19 @@ def _realtime_scheduling():
         os.sched_setscheduler(0, previous[0], previous[1])
 
 
+def stop_outcome(problems: list[str]) -> str:
+    """What the abort line says about the robot, from what stopping it reported."""
+    unsure = [p for p in problems if "check the robot" in p]
+    if unsure:
+        return f"robot NOT confirmed stopped: {unsure[-1]}"
+    if any("dashboard" in p for p in problems):
+        return "robot stopped through the dashboard"
+    return "robot stopped"
+
+
 def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion: PlannedMotion,
-             link: RobotLink, result: RunResult, say: Callable[[str], None], live) -> RunResult:
+             link: RobotLink, result: RunResult, say: Callable[[str], None], live,
+             signals: _SessionSignals) -> RunResult:
     from urident.session.recorder import RtdeRecorder
 
     config = request.config
@@ -239,7 +311,12 @@ def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion:
     }
     request.out.parent.mkdir(parents=True, exist_ok=True)
     recorder = RtdeRecorder(request.host, info.rate_hz, request.out, metadata)
-    recorder.start()  # every controller sample from here on is in the log
+    try:
+        recorder.start()  # every controller sample from here on is in the log
+    except BaseException as exc:
+        with signals.shielded():
+            recorder.stop("aborted", f"before any motion: {type(exc).__name__}: {exc}", {})
+        raise
     monitor = RunMonitor(config.monitors, period)
     periods = np.full(len(motion.q_cmd), np.nan)
     abort_reason: str | None = None
@@ -268,7 +345,7 @@ def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion:
             if k == 0:
                 servo_timestamps.append(timestamp)
             abort_reason = monitor.check(q_cmd, np.asarray(q), timestamp, safety_bits, runtime_state,
-                                         work_s)
+                                         work_s, link.actual_current)
             if live is not None:
                 live.push({"timestamp": timestamp, "actual_q": q, **link.stream_state()}, q_cmd)
             if abort_reason:
@@ -280,19 +357,22 @@ def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion:
             servo_timestamps.append(timestamp)
     except KeyboardInterrupt:
         abort_reason = "interrupted by the operator (Ctrl-C)"
+    except Terminated as exc:
+        abort_reason = f"terminated by {exc.name}"
     except ConnectionLost as exc:
         abort_reason = str(exc)
     except RuntimeError as exc:  # ur_rtde raises RuntimeError when the link breaks
         abort_reason = f"connection lost: {exc}"
     except SessionAborted as exc:
         abort_reason = str(exc)
+    except Exception as exc:  # noqa: BLE001 - a bug must still stop the robot and close the log
+        abort_reason = f"internal error: {type(exc).__name__}: {exc}"
     finally:
         # Stop the robot first; the recorder then writes what the controller sent until the stop.
+        signals.stopping = True
         problems = link.stop()
         scheduling.__exit__(None, None, None)
         valid = periods[np.isfinite(periods)]
-        if request.record_periods:
-            np.save(request.out.with_suffix(".periods.npy"), valid)
         errors = np.abs(valid - period) if len(valid) else np.zeros(1)
         result.period_error_s = {"p50": float(np.percentile(errors, 50)),
                                  "p99": float(np.percentile(errors, 99)), "max": float(errors.max())}
@@ -306,6 +386,8 @@ def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion:
         stats = recorder.stop(status, abort_reason, extra)
         if live is not None:
             live.close(abort_reason)
+        if request.record_periods:  # after the log is closed: a failure here cannot leave it open
+            np.save(request.out.with_suffix(".periods.npy"), valid)
     n_samples = stats.n_samples if stats else 0
     result.status = status
     result.log_path = request.out
@@ -314,9 +396,11 @@ def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion:
     result.late_cycles = monitor.late.late
     result.max_tracking_error_rad = monitor.max_tracking_error
     if abort_reason:
-        raise SessionAborted(f"run aborted {abort_reason}; robot stopped; {n_samples} samples "
-                             f"kept in {request.out}")
+        raise SessionAborted(f"run aborted {abort_reason}; {stop_outcome(problems)}; {n_samples} "
+                             f"samples kept in {request.out}")
     missed = stats.missed_samples if stats else 0
     say(f"completed: {n_samples} samples in {request.out} ({missed} missed, {monitor.late.late} "
         f"late cycles, max tracking error {monitor.max_tracking_error:.4f} rad)")
+    for problem in problems:
+        say(f"warning: while stopping: {problem}")
     return result

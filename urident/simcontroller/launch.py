@@ -7,7 +7,9 @@ Shared by ``urident sim-controller`` (:mod:`urident.cli.cmd_sim_controller`) and
 from __future__ import annotations
 
 import argparse
+import ipaddress
 import signal
+import socket
 import sys
 
 from urident.cli import options
@@ -30,7 +32,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", default="ur5e",
                         help="robot name (urident model --list) or robot file; default ur5e")
     parser.add_argument("--host", default="127.0.0.1",
-                        help="loopback address to bind (one controller per address; default 127.0.0.1)")
+                        help="loopback address to bind (one controller per address; default "
+                             "127.0.0.1); another address needs --allow-remote")
+    parser.add_argument("--allow-remote", action="store_true",
+                        help="allow binding a non-loopback address, reachable from other machines "
+                             "(warns on every start)")
     parser.add_argument("--version", dest="controller_version", default=None, metavar="VERSION",
                         type=options.checked(_parse_version),
                         help="controller software version, e.g. 5.11.0 (e-Series, 500 Hz) or 3.15.8 "
@@ -44,8 +50,57 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="do not ask for real-time (SCHED_FIFO) scheduling of the controller loop")
     parser.add_argument("--verbose", action="store_true",
                         help="log every recipe and the first use of each script command on stderr")
-    parser.add_argument("--initial-q", type=options.joint_vector, default=None, metavar="Q0,...,Q5",
-                        help="initial joint positions [rad], comma-separated (default: a home pose)")
+    start = parser.add_mutually_exclusive_group()
+    start.add_argument("--initial-q", type=options.joint_vector, default=None, metavar="Q0,...,Q5",
+                       help="initial joint positions [rad], comma-separated (default: a home pose)")
+    start.add_argument("--start-near", default=None, metavar="TRAJECTORY",
+                       help=f"start the arm {START_NEAR_OFFSET_RAD} rad (each joint) from this "
+                            f"trajectory file's start, so `urident run` approaches it")
+
+
+START_NEAR_OFFSET_RAD = 0.05  # small, so the approach is short but still exercised
+
+
+def loopback_problem(host: str) -> str | None:
+    """Why ``host`` is not a loopback-only address, or None when every address it names is."""
+    try:
+        addresses = {info[4][0] for info in socket.getaddrinfo(host, None, socket.AF_INET)}
+    except (socket.gaierror, UnicodeError) as exc:
+        return f"cannot resolve it ({exc})"
+    outside = sorted(a for a in addresses if not ipaddress.ip_address(a).is_loopback)
+    if outside:
+        return f"it binds {', '.join(outside)}, which is not a loopback address"
+    return None
+
+
+def check_bind_address(host: str, allow_remote: bool) -> str | None:
+    """Refuse a non-loopback ``--host`` unless ``--allow-remote``; returns the warning to print
+    when it is allowed."""
+    problem = loopback_problem(host)
+    if problem is None:
+        return None
+    if not allow_remote:
+        raise ConfigError(f"--host {host}: {problem}; the simulated controller serves loopback "
+                          f"only (pass --allow-remote to expose it to other machines)")
+    return (f"warning: --allow-remote: the simulated controller on {host} is reachable from other "
+            f"machines; anyone who can reach it can drive it")
+
+
+def start_near(path: str, spec) -> list[float]:
+    """Initial joint positions a small offset from the start of trajectory file ``path``."""
+    import numpy as np
+
+    from urident.excitation import load_trajectory
+
+    traj = load_trajectory(path)
+    if traj.robot != spec.name:
+        raise ConfigError(f"--start-near {path}: trajectory is for robot '{traj.robot}', "
+                          f"not '{spec.name}'")
+    q = np.asarray(traj.trajectory.q_start, dtype=float) + START_NEAR_OFFSET_RAD
+    # Toward the middle of the range where the offset would leave it.
+    over = q > spec.q_max
+    q[over] -= 2 * START_NEAR_OFFSET_RAD
+    return [float(x) for x in q]
 
 
 def _parse_version(text: str):
@@ -78,6 +133,8 @@ def build_server(args: argparse.Namespace):
         raise ConfigError(f"--version {'.'.join(map(str, version[:3]))} is for {generation} controllers "
                           f"but robot '{spec.name}' is {spec.generation}")
     initial_q = None if args.initial_q is None else list(args.initial_q)  # checked by options.joint_vector
+    if getattr(args, "start_near", None):
+        initial_q = start_near(args.start_near, spec)
     config = ControllerConfig(spec=spec, version=version, faults=faults, seed=args.seed,
                               effects_path=args.effects, initial_q=initial_q)
     controller = Controller(config)
@@ -90,6 +147,9 @@ def serve(args: argparse.Namespace) -> int:
     """Bind, print the ready line, run until SIGINT/SIGTERM; print loop statistics at the end."""
     from urident.simcontroller.server import format_stats, raise_priority
 
+    warning = check_bind_address(args.host, bool(getattr(args, "allow_remote", False)))
+    if warning:
+        print(warning, file=sys.stderr, flush=True)
     priority = "normal priority" if args.no_realtime else raise_priority()
     server = build_server(args)
     server.bind()
