@@ -9,7 +9,6 @@ log lands there; ``urident`` is this tree's ``python -m urident.cli.main``.
 
 from __future__ import annotations
 
-import re
 import shlex
 import shutil
 import subprocess
@@ -17,17 +16,17 @@ import sys
 import time
 from pathlib import Path
 
+from readme_helpers import bash_blocks, block_commands
+
 from urident.logs import load_log
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def dry_run_commands() -> list[str]:
-    text = (ROOT / "README.md").read_text()
-    start = text.index("urident's own simulated controller")
-    block = re.search(r"```bash\n(.*?)```", text[start:], re.S)
-    assert block, "no bash block after the simulated-controller paragraph"
-    return [line for line in block.group(1).splitlines() if line.strip()]
+    blocks = bash_blocks(after="urident's own simulated controller")
+    assert blocks, "no bash block after the simulated-controller paragraph"
+    return [command for _, command in block_commands(blocks[0])]
 
 
 def argv(words: list[str]) -> list[str]:
