@@ -66,7 +66,7 @@ def one_line(capsys) -> str:
 
 def consumers(logs, log):
     return {
-        "identify": ["identify", str(log), "--robot", "ur5", "--out", str(logs["dir"] / "p_out.yaml")],
+        "identify": ["identify", str(log), "--robot", "ur5", "--out", str(logs["dir"] / f"p_{log.stem}.yaml")],
         "validate": ["validate", str(log), "--params", str(logs["params"])],
         "gap": ["gap", "--robot", "ur5", "--ident", str(logs["ident"]), "--valid", str(log)],
     }
