@@ -419,3 +419,12 @@ def test_cli_presets_and_overrides(spec, tmp_path, capsys):
     assert main(["identify", str(tmp_path / "id.csv"), "--robot", "ur5", "--out", str(out),
                  "--dahl-rad", "auto", "--overwrite"]) == 2
     assert "needs a Dahl state" in capsys.readouterr().err
+
+
+def test_reports_name_the_friction_model_they_used():
+    from urident.ident.design import ModelConfig
+
+    assert ModelConfig().friction_summary() == "tanh friction, eps = 0.01 rad/s"
+    text = ModelConfig(coulomb="dahl", dahl_source="velocity", extras=("load",)).friction_summary()
+    assert text.startswith("Dahl friction") and "velocity" in text and text.endswith("+ load")
+    assert ModelConfig(coulomb="hold").friction_summary().startswith("hold friction")

@@ -8,7 +8,7 @@ def format_report(res, top: int = 12) -> str:
     lines = []
     b, f = res.baseline_rms, res.final_rms
     lines.append(f"Sim-to-real gap, robot {res.robot}: baseline {res.model.method.upper()} "
-                 f"(tanh friction, eps = {res.model.model.friction_eps:g} rad/s), "
+                 f"({res.model.model.friction_summary()}), "
                  f"{res.ident.n} identification / {res.valid.n} validation samples")
     lines.append("")
     lines.append("Where (validation residual, measured - predicted):")

@@ -36,6 +36,16 @@ class ModelConfig:
     stribeck_vs: float = 0.05       # [rad/s] Stribeck velocity
     dahl_source: str = "position"   # Dahl displacement from 'position' (q) or 'velocity' (∫q̇ dt)
 
+    def friction_summary(self) -> str:
+        """The friction model in one phrase, for reports: ``tanh friction, eps = 0.01 rad/s``."""
+        if self.coulomb == "tanh":
+            text = f"tanh friction, eps = {self.friction_eps:g} rad/s"
+        elif self.coulomb == "dahl":
+            text = f"Dahl friction, delta = {self.dahl_rad:g} rad from {self.dahl_source}"
+        else:
+            text = f"hold friction, v_hold = {self.hold_velocity:g} rad/s"
+        return text + (f" + {', '.join(self.extras)}" if self.extras else "")
+
     def __post_init__(self) -> None:
         if not self.friction_eps > 0:
             raise ConfigError(f"friction_eps must be positive, not {self.friction_eps}")

@@ -10,6 +10,7 @@ log; rest at the final point; then — always, in a ``finally`` — servoStop an
 from __future__ import annotations
 
 import hashlib
+import io
 import os
 import signal
 import threading
@@ -24,6 +25,7 @@ import numpy as np
 
 from urident.errors import (ConfigError, ConnectionLost, ControllerUnreachable, Interrupted,
                             SafetyError, SessionAborted)
+from urident.fileio import write_bytes_atomic
 from urident.model import RobotSpec, load_robot
 from urident.session.config import ExperimentConfig
 from urident.session.monitors import RunMonitor, safety_problem
@@ -387,7 +389,10 @@ def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion:
         if live is not None:
             live.close(abort_reason)
         if request.record_periods:  # after the log is closed: a failure here cannot leave it open
-            np.save(request.out.with_suffix(".periods.npy"), valid)
+            buffer = io.BytesIO()
+            np.save(buffer, valid)
+            # the CLI refused an existing or linked target before motion; never follow a link now
+            write_bytes_atomic(request.out.with_suffix(".periods.npy"), buffer.getvalue(), overwrite=True)
     n_samples = stats.n_samples if stats else 0
     result.status = status
     result.log_path = request.out
