@@ -21,9 +21,10 @@ from pathlib import Path
 
 import pytest
 from readme_helpers import bash_blocks, block_commands
+from shared_data import shared_data_dir
 
 ROOT = Path(__file__).resolve().parent.parent
-SHARED = ROOT.parent / "shared"
+SHARED = shared_data_dir().parent  # the README reads ../shared/data
 OUTPUT_FLAGS = ("--out", "--json-out", "--save", "--urdf", "--png", "--report")
 NOT_HERE = (re.compile(r"^(pip|pytest|docker)\b"), re.compile(r"^urident (demo|excite)\b"),
             re.compile(r"--host\b"), re.compile(r"&$"), re.compile(r"^kill\b"))
