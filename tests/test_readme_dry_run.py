@@ -36,6 +36,7 @@ def argv(words: list[str]) -> list[str]:
 
 def test_readme_dry_run_as_written(tmp_path):
     shutil.copytree(ROOT / "experiments", tmp_path / "experiments")
+    (tmp_path / "logs").mkdir()  # as in the checkout, where the README runs
     jobs: list[subprocess.Popen] = []
     ran = []
     try:

@@ -35,13 +35,13 @@ def small_trajectory(path, robot):
 
 @pytest.mark.parametrize("robot, host, rate, model, version, other", ARMS)
 def test_short_servoj_run_on_the_emulated_arm(tmp_path, robot, host, rate, model, version, other):
-    trajectory = small_trajectory(tmp_path / f"{robot}.yaml", robot)
+    trajectory = small_trajectory(tmp_path / f"{robot}_trajectory.yaml", robot)
     config = tmp_path / "relaxed.yaml"
     config.write_text(RELAXED)
     out = tmp_path / f"{robot}.csv"
     with SimControllerProcess(host=host, robot=robot, initial_q=NEAR_START):
         lines = dashboard(host, "get robot model", "get serial number", "PolyscopeVersion")
-        refused = run_cli(host, other, small_trajectory(tmp_path / f"{other}.yaml", other),
+        refused = run_cli(host, other, small_trajectory(tmp_path / f"{other}_trajectory.yaml", other),
                           tmp_path / "refused.csv", config, "--yes")
         r = run_cli(host, robot, trajectory, out, config, "--yes")
     assert lines[1] == model
