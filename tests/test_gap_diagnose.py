@@ -139,15 +139,33 @@ def test_payload_added_after_identification_is_found_by_cv(spec):
     assert res.findings, format_report(res)
     first = res.findings[0]
     assert first.effect == "payload_error" and first.mode == "cv"
-    # its joint: where the payload is the largest share of the joint's torque (the true one's)
+    assert first.magnitude["mass_kg"] == pytest.approx(2.0, rel=0.25)
+
+
+def test_a_payload_finding_lists_the_joints_it_loads_by_absolute_torque(spec):
+    """A whole-arm effect is reported on every joint it changes, ordered by the torque it explains
+    there (the true payload's order on the shoulder/elbow), not on the wrist joint where its
+    relative shrink is largest; the JSON keeps ``joint`` (the first) and ``joints``."""
+    from urident.gap.results import result_dict
     from urident.simcontroller.effects import payload_params
 
+    payload = "effects:\n  - name: payload_error\n    mass_kg: 2.0\n"
+    ident = simulate(spec, sines(7), None, seed=41)
+    valid = simulate(spec, sines(8), payload, seed=42)
+    res = diagnose([ident], [valid], spec, config=FAST)
+    first = res.findings[0]
     q, qd, qdd = sines(8).evaluate(valid.t)
-    true_tau = joint_torques(spec, payload_params(spec, 2.0, np.zeros(3)), q, qd, qdd)
-    tau = valid.current * np.asarray(spec.drive_gains, float)
-    share = np.sqrt(np.mean(true_tau ** 2, axis=0) / np.mean(tau ** 2, axis=0))
-    assert int(np.argmax(share)) + 1 in first.joints and first.joint in first.joints
-    assert first.magnitude["mass_kg"] == pytest.approx(2.0, rel=0.25)
+    true_rms = np.sqrt(np.mean(joint_torques(spec, payload_params(spec, 2.0, np.zeros(3)), q, qd, qdd) ** 2,
+                               axis=0))
+    assert first.joint == int(np.argmax(true_rms)) + 1 == first.joints[0]
+    assert len(first.joints) >= 3 and list(first.torque_nm) == sorted(first.torque_nm, reverse=True)
+    # the two joints the payload loads most, in the true order
+    assert list(first.joints[:2]) == [int(k) + 1 for k in np.argsort(-true_rms)[:2]]
+    assert first.torque_nm[0] == pytest.approx(true_rms.max(), rel=0.3)
+    doc = result_dict(res)["findings"][0]
+    assert doc["joint"] == first.joint and doc["joints"] == list(first.joints)
+    assert len(doc["torque_nm"]) == len(doc["joints"]) == len(doc["joint_shrink_pct"])
+    assert "joints " in format_report(res)
 
 
 def test_offset_vs_stribeck_confound_is_flagged(spec):

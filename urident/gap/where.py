@@ -23,10 +23,11 @@ def signed_load(ctx: SetContext) -> np.ndarray:
     return np.sign(ctx.qd) * np.abs(ctx.tau_hat)
 
 
-def finding_regime(best: Score, ctx: SetContext) -> str:
-    """The text of where ``best``'s improvement on its joint concentrates (``ctx``: validation)."""
+def finding_regime(best: Score, ctx: SetContext, joint: int | None = None) -> str:
+    """The text of where ``best``'s improvement on its joint (or 0-based ``joint``) concentrates
+    (``ctx``: validation)."""
     c = best.candidate
-    j = best.joint
+    j = best.joint if joint is None else joint
     base_r = best.change + best.fit.residual          # residual before this step
     gain_j = base_r[:, j] ** 2 - best.fit.residual[:, j] ** 2
     reg = maps.best_regime(j, gain_j, ctx.qd[:, j], signed_load(ctx)[:, j], ctx.q[:, j],
