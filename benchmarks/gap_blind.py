@@ -346,6 +346,7 @@ def run_scenario(spec, sc: Scenario, rate: float = 200.0, duration: float = 60.0
     from urident.gap.data import build_set
     from urident.gap.residual import make_context
 
+    start = time.perf_counter()
     ident, valid, sealed = simulate_runs(spec, sc, rate, duration)
     t0 = time.perf_counter()
     res = diagnose([_strip(ident)], [_strip(valid)], spec, config=config)   # recordings + robot only
@@ -366,6 +367,7 @@ def run_scenario(spec, sc: Scenario, rate: float = 200.0, duration: float = 60.0
     if not truth:
         out["false_alarm"] = bool(found)
         out["wrong_findings"] = len(found)
+        out["scenario_s"] = time.perf_counter() - start
         return out
     out["wrong_findings"] = sum(1 for (e, _), aff in zip(found, affected)
                                 if not any(e == te and tj in aff for te, tj in truth))
@@ -405,6 +407,7 @@ def run_scenario(spec, sc: Scenario, rate: float = 200.0, duration: float = 60.0
         errs[k]["own_actual_shrink_pct"] = float(100 * (1 - rms1[j] / rms_loo[j]))
         errs[k]["visible"] = errs[k]["own_actual_shrink_pct"] >= VISIBLE_PCT
         errs[k]["named"] = any(fe == e and j in aff for (fe, _), aff in zip(found, affected))
+    out["scenario_s"] = time.perf_counter() - start
     out["finding_true"] = [any(e == te and tj in aff for te, tj in truth) for (e, _), aff in zip(found, affected)]
     out["visible"] = any(e["actual_shrink_pct"] >= VISIBLE_PCT for e in errs)
     # ... and shows on the validation run too (the only run where the diagnosis can see it)
@@ -545,6 +548,12 @@ def main(argv=None) -> int:
                          "a payload with 2 joint effects (one kind in four each)")
     ap.add_argument("--min-shrink", type=float, default=None, metavar="PCT",
                     help="the diagnosis' materiality floor (GapConfig.min_shrink_pct; default its default)")
+    ap.add_argument("--first", type=int, default=0, metavar="I",
+                    help="first scenario index (to split a run over processes; default 0)")
+    ap.add_argument("--rows-out", metavar="FILE", default=None,
+                    help="also write every scenario's row, one JSON object a line")
+    ap.add_argument("--from-rows", nargs="+", metavar="FILE", default=None,
+                    help="no simulation: summarise the rows written by earlier --rows-out runs")
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args(argv)
 
@@ -555,11 +564,17 @@ def main(argv=None) -> int:
     config = GapConfig() if args.min_shrink is None else GapConfig(min_shrink_pct=args.min_shrink)
     rows = []
     t0 = time.perf_counter()
-    for i in range(args.scenarios):
+    if args.from_rows:
+        rows = [json.loads(line) for path in args.from_rows for line in open(path) if line.strip()]
+    sink = open(args.rows_out, "w") if args.rows_out else None
+    for i in range(args.first, args.first + args.scenarios) if not args.from_rows else ():
         kinds = ("none",) if args.effect_free else MULTI_KINDS if args.multi else None
         sc = draw_scenario(i, args.seed, kinds) if kinds else draw_scenario(i, args.seed)
         row = run_scenario(spec, sc, args.rate, args.duration, config)
         rows.append(row)
+        if sink:
+            sink.write(json.dumps(row) + "\n")
+            sink.flush()
         truth = ", ".join(f"{t['effect']}@{t['joint']}" for t in row["truth"]) or "none"
         found = ", ".join(f"{t['effect']}@{t['joint']} ({t['shrink_pct']:.1f} %)" for t in row["found"]) or "none"
         sh = " ".join(f"{s['predicted_shrink_pct']:.0f}/{s['actual_shrink_pct']:.0f}"
@@ -571,6 +586,8 @@ def main(argv=None) -> int:
               flush=True)
         if args.verbose:
             print("      ", json.dumps(row["entries"]))
+    if sink:
+        sink.close()
     summary = summarise(rows)
     cfg = config
     print(f"materiality: shrink >= {cfg.min_shrink_pct:g} % of the joint's RMS; CV-mode findings also "
@@ -580,7 +597,7 @@ def main(argv=None) -> int:
     summary["per_finding"] = summarise_findings(rows)
     summary.update(seed=args.seed, rate_hz=args.rate, duration_s=args.duration, effect_free_only=args.effect_free,
                    multi=args.multi, wall_s=time.perf_counter() - t0,
-                   mean_scenario_s=(time.perf_counter() - t0) / max(len(rows), 1))
+                   mean_scenario_s=float(np.mean([r["scenario_s"] for r in rows])) if rows else None)
     _print_summary(summary)
     _print_findings(summary["per_finding"])
     print(f"time per scenario: diagnosis {summary['mean_diagnosis_s']:.2f} s, with the simulation and the "
