@@ -87,8 +87,25 @@ def test_effect_free_scenario_finds_nothing(spec):
     doc = res.as_dict()
     assert doc["findings"] == [] and doc["no_effect_found"] is True
     assert doc["final"]["rms_nm"] == pytest.approx(doc["baseline"]["rms_nm"])
-    # the residual is the current noise (0.02 A × drive gain ≈ 0.2 N·m)
+    # the residual is the current noise (0.02 A × drive gain ≈ 0.2 N·m): nothing beyond the catalogue
     assert np.all(res.baseline_rms < 0.3)
+    assert doc["where"]["unexplained"] == [] and "Beyond the catalogue" not in format_report(res)
+
+
+def test_an_effect_outside_the_tested_set_is_reported_beyond_the_catalogue(spec):
+    """Stribeck friction on joint 2 with only current offsets tested: nothing is named, and the
+    report says joint 2's residual stays above the noise, concentrated near zero velocity."""
+    effect = ("effects:\n  - name: stribeck\n    joints: [2]\n    static_friction_ratio: 1.6\n"
+              "    stribeck_velocity_rad_s: 0.03\n")
+    ident = simulate(spec, sines(3), effect, seed=21)
+    valid = simulate(spec, sines(4, vmax=0.4), effect, seed=22)
+    res = diagnose([ident], [valid], spec, config=GapConfig(n_boot=300, effects=("current_offset",)))
+    left = {u["joint"]: u for u in res.where["unexplained"]}
+    assert 2 in left and left[2]["noise_ratio"] >= 1.25
+    assert any("|q̇| <" in t for t in left[2]["regimes"]), left[2]
+    assert "Beyond the catalogue" in format_report(res)
+    # joints without the effect stay at the noise
+    assert set(left) <= {2, 3}, left
 
 
 def test_stribeck_on_joint_2_is_found_on_joint_2(spec):

@@ -64,6 +64,16 @@ def format_report(res, top: int = 12) -> str:
             if x.confounded_with:
                 lines.append(f"     confounded with: {'; '.join(x.confounded_with)} "
                              "(the data cannot tell them apart)")
+    left = res.where.get("unexplained") or []
+    if left:
+        lines.append("")
+        lines.append("Beyond the catalogue (residual left after the findings, above the noise):")
+        for u in left:
+            lines.append(f"  joint {u['joint']}: RMS {u['rms_nm']:.3f} N·m, {u['noise_ratio']:.1f} x its "
+                         f"white-noise torque ({u['noise_nm']:.3f} N·m); structured part "
+                         f"{u['structured_rms_nm']:.3f} N·m")
+            for text in u["regimes"] or ["spread over all regimes"]:
+                lines.append(f"     where: {text}")
     lines.append("")
     lines.append("How far (validation):")
     lines.append("  joint   baseline [Nm]   final [Nm]   shrink")
