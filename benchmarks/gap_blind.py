@@ -253,8 +253,9 @@ class Scenario:
     truth: list[dict]          # [{"effect", "joint" (0-based or None), "entry"}]
 
 
-#: ``--multi``: effect-free, two and three joint effects on distinct joints, and the whole-arm
-#: effect (payload_error) together with two joint effects.
+#: ``--multi``: effect-free; two effects on distinct joints (drawn as in the single-effect mix, a
+#: payload among them possibly); three joint effects on distinct joints; the whole-arm effect
+#: (payload_error) together with two joint effects.
 MULTI_KINDS = ("none", "two", "three", "arm")
 WHOLE_ARM = ("payload_error",)
 
@@ -489,7 +490,17 @@ def summarise_findings(rows: list[dict]) -> dict:
         "mean_shrink_error_named_pts": float(np.mean(named_err)) if named_err else None,
         "max_shrink_error_named_pts": float(np.max(named_err)) if named_err else None,
         "scenarios_by_effect_count": {k: len(v) for k, v in sorted(by_count.items())},
+        # per effect class: [mean |predicted - actual| over its named effects that matter, count]
+        "shrink_error_by_effect": {e: [float(np.mean(v)), len(v)] for e, v in sorted(_by_effect(vis).items())},
     }
+
+
+def _by_effect(effects: list[dict]) -> dict:
+    out: dict = {}
+    for s in effects:
+        if s["named"]:
+            out.setdefault(s["effect"], []).append(s["error_pts"])
+    return out
 
 
 def _print_findings(m: dict) -> None:
@@ -503,6 +514,8 @@ def _print_findings(m: dict) -> None:
           f"shrink error {fmt(m['mean_shrink_error_named_pts'])} points per named effect "
           f"(max {fmt(m['max_shrink_error_named_pts'])}); scenarios by effect count "
           f"{m['scenarios_by_effect_count']}")
+    print("shrink error per effect class (mean points, named effects that matter): " +
+          ", ".join(f"{e} {v:.1f} ({n})" for e, (v, n) in m["shrink_error_by_effect"].items()))
 
 
 def _print_summary(summary: dict) -> None:

@@ -10,6 +10,7 @@ from urident.gap import maps
 from urident.gap.controller import controller_reference
 from urident.gap.residual import SetContext
 from urident.gap.results import Score
+from urident.gap.significance import noise_sigma
 
 #: The map axes where each effect's improvement is looked for first.
 PREFER_AXIS = {"stribeck": ("velocity",), "load_friction": ("load",), "thermal_drift": ("time",),
@@ -78,8 +79,6 @@ def describe_unexplained(ctx: SetContext, residual: np.ndarray,
     least ``ratio`` times above the white-noise torque: its RMS, the noise, the structured part
     √(RMS² − σ²) and where it concentrates (regimes of the maps), so that an effect beyond the
     catalogue is reported instead of silently missing."""
-    from urident.gap.significance import noise_sigma
-
     r = np.asarray(residual, float)
     sigma = noise_sigma(r)
     load = signed_load(ctx)
