@@ -75,8 +75,16 @@ Acceptance (the issue's targets: top-1 >= 90 %, joint 100 %, no false alarms, me
 <= 10 points) is judged on the **visible** scenarios (plus all effect-free ones for the false
 alarms); the figures over all scenarios are printed too.
 
+Several effects at once (``--multi``, :data:`MULTI_KINDS`): effect-free, two effects on distinct
+joints, three joint effects, a payload with two joint effects. Scored per finding
+(:func:`summarise_findings`): each true effect by what it explains on its joint of the sealed run
+on top of the other true effects (leave-one-out; it "matters" at >= 3 %), recall (effects that
+matter named on their joint), precision (findings naming a true effect on its joint), scenarios
+where every effect that matters is named, the shrink error per named effect (its joint's
+predicted vs actual shrink) and per effect class. Printed for the single-effect mix too.
+
 Usage: ``python benchmarks/gap_blind.py [--scenarios 40] [--seed 1] [--rate 200] [--duration 60]
-[--effect-free] [--min-shrink PCT]``. ``--effect-free`` makes every scenario effect-free (a
+[--effect-free | --multi] [--min-shrink PCT] [--first I] [--rows-out FILE] [--from-rows FILE …]``. ``--effect-free`` makes every scenario effect-free (a
 false-alarm scan); ``--min-shrink`` sets the diagnosis' materiality floor (to calibrate it). The
 last line printed is one JSON object.
 """
