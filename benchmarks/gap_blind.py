@@ -43,10 +43,10 @@ Scores, per scenario with an effect:
 * top-1 effect: the first finding's effect is one of the true effects;
 * joint: the first finding's (effect, joint) is a true one (strict: effect and joint). Printed
   too, the looser reading ``joint_only``: the first finding's joint is a true effect's joint,
-  whatever effect it names. A payload's joint (truth and
-  diagnosis alike) is the joint where the payload torque is the largest share of the joint's
-  measured torque (RMS over RMS) on the validation run; the diagnosis reports every joint within
-  ``MAIN_SHARE`` (70 %) of that largest share as affected, and the true joint must be among them;
+  whatever effect it names. A payload's joint (truth and diagnosis alike) is the joint where the
+  payload explains the most torque (RMS of its torque on the validation run); the diagnosis
+  lists every joint the payload changes, most torque first, and its ``joint`` (the first) must
+  be the true one;
 * false alarm: an effect-free scenario with any finding;
 * shrink error, per true effect: |predicted − actual| in points, *predicted* = the diagnosis'
   validation shrink of that joint after all its findings, 100·(1 − RMS_final/RMS_baseline)
@@ -75,8 +75,16 @@ Acceptance (the issue's targets: top-1 >= 90 %, joint 100 %, no false alarms, me
 <= 10 points) is judged on the **visible** scenarios (plus all effect-free ones for the false
 alarms); the figures over all scenarios are printed too.
 
+Several effects at once (``--multi``, :data:`MULTI_KINDS`): effect-free, two effects on distinct
+joints, three joint effects, a payload with two joint effects. Scored per finding
+(:func:`summarise_findings`): each true effect by what it explains on its joint of the sealed run
+on top of the other true effects (leave-one-out; it "matters" at >= 3 %), recall (effects that
+matter named on their joint), precision (findings naming a true effect on its joint), scenarios
+where every effect that matters is named, the shrink error per named effect (its joint's
+predicted vs actual shrink) and per effect class. Printed for the single-effect mix too.
+
 Usage: ``python benchmarks/gap_blind.py [--scenarios 40] [--seed 1] [--rate 200] [--duration 60]
-[--effect-free] [--min-shrink PCT]``. ``--effect-free`` makes every scenario effect-free (a
+[--effect-free | --multi] [--min-shrink PCT] [--first I] [--rows-out FILE] [--from-rows FILE …]``. ``--effect-free`` makes every scenario effect-free (a
 false-alarm scan); ``--min-shrink`` sets the diagnosis' materiality floor (to calibrate it). The
 last line printed is one JSON object.
 """
@@ -253,16 +261,31 @@ class Scenario:
     truth: list[dict]          # [{"effect", "joint" (0-based or None), "entry"}]
 
 
+#: ``--multi``: effect-free; two effects on distinct joints (drawn as in the single-effect mix, a
+#: payload among them possibly); three joint effects on distinct joints; the whole-arm effect
+#: (payload_error) together with two joint effects.
+MULTI_KINDS = ("none", "two", "three", "arm")
+WHOLE_ARM = ("payload_error",)
+
+
 def draw_scenario(index: int, seed: int, kinds=("none", "one", "one", "one", "one", "two")) -> Scenario:
     rng = np.random.default_rng([seed, index])
     kind = kinds[index % len(kinds)]
-    n = {"none": 0, "one": 1, "two": 2}[kind]
-    names = list(rng.choice(EFFECT_NAMES, size=n, replace=False))
+    if kind in ("none", "one", "two"):     # the single-effect mix, drawn as before
+        n = {"none": 0, "one": 1, "two": 2}[kind]
+        names = list(rng.choice(EFFECT_NAMES, size=n, replace=False))
+    else:                                  # joint effects only, plus the whole-arm one for "arm"
+        joint_effects = [e for e in EFFECT_NAMES if e not in WHOLE_ARM]
+        n = 3 if kind == "three" else 2
+        names = list(rng.choice(joint_effects, size=n, replace=False))
+        if kind == "arm":
+            names = [WHOLE_ARM[0]] + names
+            n = 3
     joints = list(rng.choice(6, size=n, replace=False))
     truth = []
     for name, j in zip(names, joints):
         entry = draw_effect(rng, str(name), int(j))
-        truth.append({"effect": str(name), "joint": None if name == "payload_error" else int(j),
+        truth.append({"effect": str(name), "joint": None if name in WHOLE_ARM else int(j),
                       "entry": entry})
     return Scenario(index, int(seed), truth)
 
@@ -296,16 +319,14 @@ def truth_candidate(spec, t: dict):
 
 
 def payload_joint(spec, entry: dict, rec) -> int:
-    """0-based joint where the true payload's torque is the largest share of the joint's measured
-    torque on ``rec`` (RMS over RMS), as the diagnosis names a payload finding's joint."""
+    """0-based joint where the true payload explains the most torque on ``rec`` (RMS), as the
+    diagnosis names a payload finding's joint (its most affected)."""
     from urident.model import joint_torques
     from urident.simcontroller.effects import payload_params
 
     p = payload_params(spec, entry["mass_kg"], np.asarray(entry.get("offset_m", [0, 0, 0]), float))
     tau_p = joint_torques(spec, p, rec.target_q, rec.target_qd, rec.target_qdd)
-    tau = np.asarray(rec.current, float) * np.asarray(spec.drive_gains, float)
-    rms = lambda x: np.sqrt(np.mean(x ** 2, axis=0))   # noqa: E731
-    return int(np.argmax(rms(tau_p) / rms(tau)))
+    return int(np.argmax(np.sqrt(np.mean(tau_p ** 2, axis=0))))
 
 
 def _strip(rec):
@@ -334,6 +355,7 @@ def run_scenario(spec, sc: Scenario, rate: float = 200.0, duration: float = 60.0
     from urident.gap.data import build_set
     from urident.gap.residual import make_context
 
+    start = time.perf_counter()
     ident, valid, sealed = simulate_runs(spec, sc, rate, duration)
     t0 = time.perf_counter()
     res = diagnose([_strip(ident)], [_strip(valid)], spec, config=config)   # recordings + robot only
@@ -347,20 +369,20 @@ def run_scenario(spec, sc: Scenario, rate: float = 200.0, duration: float = 60.0
         truth.append((t["effect"], j))
     found = [(f.effect, f.joint - 1) for f in res.findings]
     found_shrink = [float(f.shrink_pct) for f in res.findings]
-    affected = [{j - 1 for j in (f.joints or (f.joint,))} for f in res.findings]
+    affected = [{f.joint - 1} for f in res.findings]   # a payload: its most affected joint
     out = {"index": sc.index, "truth": [{"effect": e, "joint": j + 1} for e, j in truth],
            "found": [{"effect": e, "joint": j + 1, "shrink_pct": sh} for (e, j), sh in zip(found, found_shrink)],
            "entries": [t["entry"] for t in sc.truth], "diagnosis_s": wall}
     if not truth:
         out["false_alarm"] = bool(found)
         out["wrong_findings"] = len(found)
+        out["scenario_s"] = time.perf_counter() - start
         return out
     out["wrong_findings"] = sum(1 for (e, _), aff in zip(found, affected)
                                 if not any(e == te and tj in aff for te, tj in truth))
     first = found[0] if found else None
     out["top1"] = bool(first and first[0] in [e for e, _ in truth])
-    # joint: the first finding's joint, or for an effect on all joints (payload) any joint it
-    # reports as affected (share of the torque within MAIN_SHARE of the largest)
+    # joint: the first finding's joint (a payload: the joint where it explains the most torque)
     out["joint_ok"] = bool(first and any(e == first[0] and j in affected[0] for e, j in truth))
     # the looser reading: the first finding points at a true effect's joint, whatever effect it names
     out["joint_only_ok"] = bool(first and any(j in affected[0] for _, j in truth))
@@ -385,6 +407,17 @@ def run_scenario(spec, sc: Scenario, rate: float = 200.0, duration: float = 60.0
                      "oracle_valid_shrink_pct": float(oracle),
                      "oracle_error_pts": float(abs(oracle - actual))})
     out["shrink"] = errs
+    # per effect (several at once): what it explains on top of the other true effects (sealed
+    # run, leave-one-out), whether a finding names it on its joint, and per finding whether true
+    for k, (t, (e, j)) in enumerate(zip(sc.truth, truth)):
+        others = [c for i, c in enumerate(cands) if i != k]
+        r_loo = r0 - res.correction(others).change(ctx_s) if others else r0
+        rms_loo = np.sqrt(np.mean(r_loo ** 2, axis=0))
+        errs[k]["own_actual_shrink_pct"] = float(100 * (1 - rms1[j] / rms_loo[j]))
+        errs[k]["visible"] = errs[k]["own_actual_shrink_pct"] >= VISIBLE_PCT
+        errs[k]["named"] = any(fe == e and j in aff for (fe, _), aff in zip(found, affected))
+    out["scenario_s"] = time.perf_counter() - start
+    out["finding_true"] = [any(e == te and tj in aff for te, tj in truth) for (e, _), aff in zip(found, affected)]
     out["visible"] = any(e["actual_shrink_pct"] >= VISIBLE_PCT for e in errs)
     # ... and shows on the validation run too (the only run where the diagnosis can see it)
     out["findable"] = any(e["actual_shrink_pct"] >= VISIBLE_PCT and e["oracle_valid_shrink_pct"] >= VISIBLE_PCT
@@ -439,6 +472,60 @@ def summarise(rows: list[dict]) -> dict:
     }
 
 
+def summarise_findings(rows: list[dict]) -> dict:
+    """Per finding, over the scenarios with an effect: recall (true effects that matter, i.e. own
+    sealed shrink on top of the other true effects >= ``VISIBLE_PCT``, named on their joint),
+    precision (findings naming a true effect on a joint it affects), scenarios where every effect
+    that matters is named, shrink error per named effect that matters (its joint's predicted vs
+    actual shrink)."""
+    eff = [r for r in rows if r["truth"]]
+    effects = [s for r in eff for s in r["shrink"]]
+    vis = [s for s in effects if s["visible"]]
+    findings = [ok for r in eff for ok in r["finding_true"]]
+    named_err = [s["error_pts"] for s in vis if s["named"]]
+    by_count: dict = {}
+    for r in eff:
+        by_count.setdefault(str(len(r["truth"])), []).append(r)
+    return {
+        "effects": len(effects), "effects_visible": len(vis),
+        "recall_visible_pct": 100.0 * np.mean([s["named"] for s in vis]) if vis else None,
+        "recall_all_pct": 100.0 * np.mean([s["named"] for s in effects]) if effects else None,
+        "findings": len(findings),
+        "precision_pct": 100.0 * np.mean(findings) if findings else None,
+        "all_visible_named_pct": 100.0 * np.mean([all(s["named"] for s in r["shrink"] if s["visible"])
+                                                   for r in eff]) if eff else None,
+        "all_named_pct": 100.0 * np.mean([all(s["named"] for s in r["shrink"]) for r in eff]) if eff else None,
+        "mean_shrink_error_named_pts": float(np.mean(named_err)) if named_err else None,
+        "max_shrink_error_named_pts": float(np.max(named_err)) if named_err else None,
+        "scenarios_by_effect_count": {k: len(v) for k, v in sorted(by_count.items())},
+        # per effect class: [mean |predicted - actual| over its named effects that matter, count]
+        "shrink_error_by_effect": {e: [float(np.mean(v)), len(v)] for e, v in sorted(_by_effect(vis).items())},
+    }
+
+
+def _by_effect(effects: list[dict]) -> dict:
+    out: dict = {}
+    for s in effects:
+        if s["named"]:
+            out.setdefault(s["effect"], []).append(s["error_pts"])
+    return out
+
+
+def _print_findings(m: dict) -> None:
+    if not m["effects"]:
+        return
+    fmt = lambda x: "-" if x is None else f"{x:.1f}"   # noqa: E731
+    print(f"per finding: recall {fmt(m['recall_visible_pct'])} % of {m['effects_visible']} effects that matter "
+          f"(own sealed shrink >= {VISIBLE_PCT:g} %; {fmt(m['recall_all_pct'])} % of all {m['effects']}), "
+          f"precision {fmt(m['precision_pct'])} % of {m['findings']} findings, every effect that matters named "
+          f"in {fmt(m['all_visible_named_pct'])} % of scenarios (every effect: {fmt(m['all_named_pct'])} %), "
+          f"shrink error {fmt(m['mean_shrink_error_named_pts'])} points per named effect "
+          f"(max {fmt(m['max_shrink_error_named_pts'])}); scenarios by effect count "
+          f"{m['scenarios_by_effect_count']}")
+    print("shrink error per effect class (mean points, named effects that matter): " +
+          ", ".join(f"{e} {v:.1f} ({n})" for e, (v, n) in m["shrink_error_by_effect"].items()))
+
+
 def _print_summary(summary: dict) -> None:
     if summary["with_effect"]:
         print(f"all {summary['with_effect']} effect scenarios: top-1 {summary['top1_accuracy_pct']:.1f} %, "
@@ -477,8 +564,17 @@ def main(argv=None) -> int:
     ap.add_argument("--duration", type=float, default=60.0, help="length of each run [s] (default 60)")
     ap.add_argument("--effect-free", action="store_true",
                     help="every scenario effect-free: a false-alarm scan (the default mix has one in six)")
+    ap.add_argument("--multi", action="store_true",
+                    help="several effects at once: effect-free, 2 and 3 joint effects on distinct joints, "
+                         "a payload with 2 joint effects (one kind in four each)")
     ap.add_argument("--min-shrink", type=float, default=None, metavar="PCT",
                     help="the diagnosis' materiality floor (GapConfig.min_shrink_pct; default its default)")
+    ap.add_argument("--first", type=int, default=0, metavar="I",
+                    help="first scenario index (to split a run over processes; default 0)")
+    ap.add_argument("--rows-out", metavar="FILE", default=None,
+                    help="also write every scenario's row, one JSON object a line")
+    ap.add_argument("--from-rows", nargs="+", metavar="FILE", default=None,
+                    help="no simulation: summarise the rows written by earlier --rows-out runs")
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args(argv)
 
@@ -489,10 +585,17 @@ def main(argv=None) -> int:
     config = GapConfig() if args.min_shrink is None else GapConfig(min_shrink_pct=args.min_shrink)
     rows = []
     t0 = time.perf_counter()
-    for i in range(args.scenarios):
-        sc = draw_scenario(i, args.seed, kinds=("none",)) if args.effect_free else draw_scenario(i, args.seed)
+    if args.from_rows:
+        rows = [json.loads(line) for path in args.from_rows for line in open(path) if line.strip()]
+    sink = open(args.rows_out, "w") if args.rows_out else None
+    for i in range(args.first, args.first + args.scenarios) if not args.from_rows else ():
+        kinds = ("none",) if args.effect_free else MULTI_KINDS if args.multi else None
+        sc = draw_scenario(i, args.seed, kinds) if kinds else draw_scenario(i, args.seed)
         row = run_scenario(spec, sc, args.rate, args.duration, config)
         rows.append(row)
+        if sink:
+            sink.write(json.dumps(row) + "\n")
+            sink.flush()
         truth = ", ".join(f"{t['effect']}@{t['joint']}" for t in row["truth"]) or "none"
         found = ", ".join(f"{t['effect']}@{t['joint']} ({t['shrink_pct']:.1f} %)" for t in row["found"]) or "none"
         sh = " ".join(f"{s['predicted_shrink_pct']:.0f}/{s['actual_shrink_pct']:.0f}"
@@ -504,15 +607,22 @@ def main(argv=None) -> int:
               flush=True)
         if args.verbose:
             print("      ", json.dumps(row["entries"]))
+    if sink:
+        sink.close()
     summary = summarise(rows)
     cfg = config
     print(f"materiality: shrink >= {cfg.min_shrink_pct:g} % of the joint's RMS; CV-mode findings also "
           f"a correction RMS >= {cfg.cv_min_noise_ratio:g} x the joint's white-noise torque "
           f"(calibrated on effect-free scenarios only)")
     summary.update(min_shrink_pct=cfg.min_shrink_pct, cv_min_noise_ratio=cfg.cv_min_noise_ratio)
+    summary["per_finding"] = summarise_findings(rows)
     summary.update(seed=args.seed, rate_hz=args.rate, duration_s=args.duration, effect_free_only=args.effect_free,
-                   wall_s=time.perf_counter() - t0)
+                   multi=args.multi, wall_s=time.perf_counter() - t0,
+                   mean_scenario_s=float(np.mean([r["scenario_s"] for r in rows])) if rows else None)
     _print_summary(summary)
+    _print_findings(summary["per_finding"])
+    print(f"time per scenario: diagnosis {summary['mean_diagnosis_s']:.2f} s, with the simulation and the "
+          f"scoring {summary['mean_scenario_s']:.2f} s")
     print(json.dumps(summary))
     return 0
 

@@ -59,3 +59,28 @@ def test_readme_post_hoc_examples_on_the_sample_logs(tmp_path, capsys):
                  "--json-out", str(tmp_path / "gap.json")]) == 0
     gap = json.loads((tmp_path / "gap.json").read_text())
     assert len(gap["baseline"]["rms_nm"]) == 6
+
+
+def test_summary_sets_the_injected_effects_beside_the_findings():
+    """Named, missed and invented are read off the effects the simulated controller ran and the
+    diagnosis' findings, with magnitudes on both sides."""
+    from pathlib import Path
+
+    from urident.demo import DemoResult, compare_effects, summary
+
+    injected = ({"name": "stribeck", "joints": [1, 2], "static_friction_ratio": [1.3, 1.3]},
+                {"name": "current_offset", "joints": [4], "offset_a": [0.03]})
+    findings = [{"effect": "stribeck", "joint": 2, "shrink_pct": 12.5, "rms_before_nm": 1.0,
+                 "rms_after_nm": 0.875, "magnitude": {"static_friction_nm": 0.8}},
+                {"effect": "load_friction", "joint": 3, "shrink_pct": 4.0, "rms_before_nm": 1.0,
+                 "rms_after_nm": 0.96, "magnitude": {"coefficient": 0.02}}]
+    rows, invented = compare_effects(injected, findings)
+    assert [(r["effect"], r["named"], r["missed"]) for r in rows] == [("stribeck", [2], [1]),
+                                                                     ("current_offset", [], [4])]
+    assert [f["effect"] for f in invented] == ["load_friction"]
+    gap = {"baseline": {"e_n": 0.1}, "final": {"e_n": 0.09}, "findings": findings}
+    text = summary(DemoResult(Path("x"), {"method": "ols", "e_n": 0.1, "rms_nm": [0.0] * 6}, gap, 1.0,
+                              "UR5e", injected))
+    assert "1 of 3 injected (effect, joint) named, 1 invented" in text
+    assert "static_friction_ratio [1.3, 1.3]" in text and "static_friction_nm 0.8" in text
+    assert "missed: 1" in text and "invented: load_friction on joint 3" in text

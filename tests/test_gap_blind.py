@@ -93,3 +93,36 @@ def test_offset_confounded_with_a_ripple_is_named_as_the_simpler_offset(gb, robo
     assert first.confidence == "confounded"
     assert any(c.startswith("position_ripple on joint 2") for c in first.confounded_with)
     assert first.magnitude["offset_a"] * 1000 == pytest.approx(-32.1, abs=8)
+
+
+def test_multi_effect_scenarios_draw_distinct_joints(gb):
+    counts = {}
+    for i in range(8):
+        sc = gb.draw_scenario(i, 201, gb.MULTI_KINDS)
+        joints = [t["joint"] for t in sc.truth if t["joint"] is not None]
+        assert len(joints) == len(set(joints))
+        kind = gb.MULTI_KINDS[i % len(gb.MULTI_KINDS)]
+        counts[kind] = len(sc.truth)
+        if kind == "arm":
+            assert sc.truth[0]["effect"] == "payload_error" and len(sc.truth) == 3
+    assert counts == {"none": 0, "two": 2, "three": 3, "arm": 3}
+
+
+def test_two_effects_at_once_are_scored_per_finding(gb, robot):
+    """Each true effect is judged on its own (what it explains on top of the other true effect)
+    and each finding is true or not: recall, precision and the per-effect shrink error."""
+    truth = [{"effect": "current_offset", "joint": 3,
+              "entry": {"name": "current_offset", "joints": [4], "offset_a": 0.08}},
+             {"effect": "load_friction", "joint": 2,
+              "entry": {"name": "load_friction", "joints": [3], "coefficient": 0.04}}]
+    row = _run(gb, robot, truth, index=3)
+    assert [s["visible"] for s in row["shrink"]] == [True, True], row["shrink"]
+    m = gb.summarise_findings([row])
+    assert m["recall_visible_pct"] == 100.0 and m["all_visible_named_pct"] == 100.0, row
+    assert m["precision_pct"] == 100.0 * sum(row["finding_true"]) / len(row["finding_true"])
+    assert m["precision_pct"] >= 50.0
+    assert set(m["shrink_error_by_effect"]) == {"current_offset", "load_friction"}
+    errs = [s["error_pts"] for s in row["shrink"]]
+    assert m["mean_shrink_error_named_pts"] == pytest.approx(sum(errs) / 2)
+    assert all(e == pytest.approx(abs(s["predicted_shrink_pct"] - s["actual_shrink_pct"]))
+               for e, s in zip(errs, row["shrink"]))

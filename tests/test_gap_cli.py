@@ -70,3 +70,44 @@ def test_cli_errors_are_one_line(logs, capsys):
     rc = main(["gap", "--robot", "ur10e", "--ident", str(logs[0]) + ".missing", "--valid", str(logs[1])])
     err = capsys.readouterr().err
     assert rc != 0 and err.startswith("urident: error: ") and err.count("\n") == 1
+
+
+@pytest.fixture(scope="module")
+def check_logs(tmp_path_factory):
+    """Two held-out logs: one with the same 0.1 A offset on joint 4, one where it is gone."""
+    from test_gap_diagnose import simulate, sines
+    from urident.model import load_robot
+
+    spec = load_robot("ur10e")
+    d = tmp_path_factory.mktemp("gapcheck")
+    eff = "effects:\n  - name: current_offset\n    joints: [4]\n    offset_a: 0.1\n"
+    _write_log(d / "same.csv", simulate(spec, sines(63, duration=16.0), eff, seed=63))
+    _write_log(d / "gone.csv", simulate(spec, sines(64, duration=16.0), None, seed=64))
+    return d / "same.csv", d / "gone.csv"
+
+
+def test_check_scores_each_finding_on_held_out_logs(logs, check_logs, tmp_path, capsys):
+    """An offset present on the check log holds there (checked shrink interval above 0); on a log
+    where it is gone the same finding no longer shrinks joint 4 and is marked as not holding."""
+    out = tmp_path / "gap.json"
+    base = ["gap", "--robot", "ur10e", "--ident", str(logs[0]), "--valid", str(logs[1]), "--max-effects", "1"]
+    assert main(base + ["--check", str(check_logs[0]), "--json-out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "Check (held-out logs" in text and "holds" in text and "DOES NOT HOLD" not in text
+    row = json.loads(out.read_text())["check"]["findings"][0]
+    assert (row["effect"], row["joint"], row["holds"]) == ("current_offset", 4, True)
+    lo, hi = row["checked_shrink_ci95_pct"]
+    assert 0 < lo <= row["checked_shrink_pct"] <= hi
+    assert row["predicted_shrink_ci95_pct"][0] > 0
+    assert main(base + ["--check", str(check_logs[1]), "--json-out", str(out), "--overwrite"]) == 0
+    text = capsys.readouterr().out
+    assert "DOES NOT HOLD on the check logs" in text
+    row = json.loads(out.read_text())["check"]["findings"][0]
+    assert row["holds"] is False and row["checked_shrink_ci95_pct"][0] <= 0
+
+
+def test_check_log_reused_for_selection_is_refused(logs, capsys):
+    rc = main(["gap", "--robot", "ur10e", "--ident", str(logs[0]), "--valid", str(logs[1]),
+               "--check", str(logs[1])])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.startswith("urident: error: --check ") and err.count("\n") == 1

@@ -87,8 +87,25 @@ def test_effect_free_scenario_finds_nothing(spec):
     doc = res.as_dict()
     assert doc["findings"] == [] and doc["no_effect_found"] is True
     assert doc["final"]["rms_nm"] == pytest.approx(doc["baseline"]["rms_nm"])
-    # the residual is the current noise (0.02 A × drive gain ≈ 0.2 N·m)
+    # the residual is the current noise (0.02 A × drive gain ≈ 0.2 N·m): nothing beyond the catalogue
     assert np.all(res.baseline_rms < 0.3)
+    assert doc["where"]["unexplained"] == [] and "Beyond the catalogue" not in format_report(res)
+
+
+def test_an_effect_outside_the_tested_set_is_reported_beyond_the_catalogue(spec):
+    """Stribeck friction on joint 2 with only current offsets tested: nothing is named, and the
+    report says joint 2's residual stays above the noise, concentrated near zero velocity."""
+    effect = ("effects:\n  - name: stribeck\n    joints: [2]\n    static_friction_ratio: 1.6\n"
+              "    stribeck_velocity_rad_s: 0.03\n")
+    ident = simulate(spec, sines(3), effect, seed=21)
+    valid = simulate(spec, sines(4, vmax=0.4), effect, seed=22)
+    res = diagnose([ident], [valid], spec, config=GapConfig(n_boot=300, effects=("current_offset",)))
+    left = {u["joint"]: u for u in res.where["unexplained"]}
+    assert 2 in left and left[2]["noise_ratio"] >= 1.25
+    assert any("|q̇| <" in t for t in left[2]["regimes"]), left[2]
+    assert "Beyond the catalogue" in format_report(res)
+    # joints without the effect stay at the noise
+    assert set(left) <= {2, 3}, left
 
 
 def test_stribeck_on_joint_2_is_found_on_joint_2(spec):
@@ -139,15 +156,33 @@ def test_payload_added_after_identification_is_found_by_cv(spec):
     assert res.findings, format_report(res)
     first = res.findings[0]
     assert first.effect == "payload_error" and first.mode == "cv"
-    # its joint: where the payload is the largest share of the joint's torque (the true one's)
+    assert first.magnitude["mass_kg"] == pytest.approx(2.0, rel=0.25)
+
+
+def test_a_payload_finding_lists_the_joints_it_loads_by_absolute_torque(spec):
+    """A whole-arm effect is reported on every joint it changes, ordered by the torque it explains
+    there (the true payload's order on the shoulder/elbow), not on the wrist joint where its
+    relative shrink is largest; the JSON keeps ``joint`` (the first) and ``joints``."""
+    from urident.gap.results import result_dict
     from urident.simcontroller.effects import payload_params
 
+    payload = "effects:\n  - name: payload_error\n    mass_kg: 2.0\n"
+    ident = simulate(spec, sines(7), None, seed=41)
+    valid = simulate(spec, sines(8), payload, seed=42)
+    res = diagnose([ident], [valid], spec, config=FAST)
+    first = res.findings[0]
     q, qd, qdd = sines(8).evaluate(valid.t)
-    true_tau = joint_torques(spec, payload_params(spec, 2.0, np.zeros(3)), q, qd, qdd)
-    tau = valid.current * np.asarray(spec.drive_gains, float)
-    share = np.sqrt(np.mean(true_tau ** 2, axis=0) / np.mean(tau ** 2, axis=0))
-    assert int(np.argmax(share)) + 1 in first.joints and first.joint in first.joints
-    assert first.magnitude["mass_kg"] == pytest.approx(2.0, rel=0.25)
+    true_rms = np.sqrt(np.mean(joint_torques(spec, payload_params(spec, 2.0, np.zeros(3)), q, qd, qdd) ** 2,
+                               axis=0))
+    assert first.joint == int(np.argmax(true_rms)) + 1 == first.joints[0]
+    assert len(first.joints) >= 3 and list(first.torque_nm) == sorted(first.torque_nm, reverse=True)
+    # the two joints the payload loads most, in the true order
+    assert list(first.joints[:2]) == [int(k) + 1 for k in np.argsort(-true_rms)[:2]]
+    assert first.torque_nm[0] == pytest.approx(true_rms.max(), rel=0.3)
+    doc = result_dict(res)["findings"][0]
+    assert doc["joint"] == first.joint and doc["joints"] == list(first.joints)
+    assert len(doc["torque_nm"]) == len(doc["joints"]) == len(doc["joint_shrink_pct"])
+    assert "joints " in format_report(res)
 
 
 def test_offset_vs_stribeck_confound_is_flagged(spec):

@@ -28,6 +28,7 @@ from urident.errors import UridentError
 ROBOT = "ur5e"  # the default; any robot with an ident/valid pair in experiments/
 EXPERIMENTS = Path(__file__).resolve().parent.parent / "experiments"
 PORTS = (30004, 29999, 30003, 30002)
+EFFECTS_PRESET = "realistic"   # the unmodelled effects the demo's simulated controller runs
 
 
 @dataclass(frozen=True)
@@ -37,6 +38,7 @@ class DemoResult:
     gap: dict
     seconds: float
     robot: str = "UR5e"         # the arm's model name, for the summary
+    injected: tuple = ()        # the effects the simulated controller ran (effects-file entries)
 
 
 class DemoError(UridentError):
@@ -146,7 +148,7 @@ def run_demo(root: Path = Path("logs"), quick: bool = False, seed: int = 0,
     config.write_text("approach:\n  speed_rad_s: 0.6\n  acceleration_rad_s2: 1.0\n"
                       "  max_distance_rad: 3.2\nmonitors:\n  max_late_fraction: 0.5\n"
                       "  max_consecutive_late: 500\nrest_s: 0.5\n")
-    with SimControllerProcess(host=host, robot=robot, effects="realistic", seed=seed,
+    with SimControllerProcess(host=host, robot=robot, effects=EFFECTS_PRESET, seed=seed,
                               initial_q=start + 0.05) as sim:
         for kind, trajectory in (("ident", ident_traj), ("valid", valid_traj)):
             step(f"urident run: {kind} trajectory {trajectory.name} at {spec.controller_rate_hz:g} Hz "
@@ -174,7 +176,10 @@ def run_demo(root: Path = Path("logs"), quick: bool = False, seed: int = 0,
 
     validation = json.loads((directory / "validation.json").read_text())
     gap = json.loads((directory / "gap.json").read_text())
-    result = DemoResult(directory, validation, gap, time.monotonic() - t0, spec.model or robot)
+    from urident.simcontroller.effects import parse_effects
+
+    injected = tuple(e.as_dict() for e in parse_effects(EFFECTS_PRESET).entries)
+    result = DemoResult(directory, validation, gap, time.monotonic() - t0, spec.model or robot, injected)
     say("")
     say(summary(result))
     return result
@@ -199,5 +204,64 @@ def summary(result: DemoResult) -> str:
     for f in findings:
         lines.append(f"  joint {f['joint']}: {f['effect']:<22} RMS {f['rms_before_nm']:.3f} -> "
                      f"{f['rms_after_nm']:.3f} N·m ({f['shrink_pct']:.1f} %), {f.get('regime', '')}")
+    if result.injected:
+        lines += injected_vs_found(result.injected, findings)
     lines.append("open the recordings with: rerun " + str(result.directory / "validation.rrd"))
     return "\n".join(lines)
+
+
+def compare_effects(injected, findings) -> tuple[list[dict], list[dict]]:
+    """Per injected effect (effects-file entries, joints 1-based): the joints a finding names it
+    on and those it misses; and the findings no injected effect explains (invented). A finding
+    names an effect on its ``joint``; an effect without joints (a payload) on any."""
+    rows = []
+    claimed = set()
+    for e in injected:
+        joints = list(e.get("joints") or [])
+        named, missed = [], []
+        for j in joints or [None]:
+            hit = [k for k, f in enumerate(findings) if f["effect"] == e["name"] and (j is None or f["joint"] == j)]
+            (named if hit else missed).append(j)
+            claimed.update(hit)
+        rows.append({"effect": e["name"], "joints": joints, "named": named, "missed": missed,
+                     "magnitude": {k: v for k, v in e.items() if k not in ("name", "joints")}})
+    invented = [f for k, f in enumerate(findings) if k not in claimed]
+    return rows, invented
+
+
+def injected_vs_found(injected, findings) -> list[str]:
+    """The summary's table: what the simulated controller injected beside what the diagnosis
+    found (named, missed, invented, with magnitudes)."""
+    rows, invented = compare_effects(injected, findings)
+    by_key = {(f["effect"], f["joint"]): f for f in findings}
+    n_named = sum(len(r["named"]) for r in rows)
+    n_all = sum(len(r["named"]) + len(r["missed"]) for r in rows)
+    lines = [f"injected ({EFFECTS_PRESET} preset) vs diagnosed: {n_named} of {n_all} injected (effect, joint) "
+             f"named, {len(invented)} invented"]
+    for r in rows:
+        mag = ", ".join(f"{k} {_short(v)}" for k, v in r["magnitude"].items())
+        where = "joints " + ",".join(map(str, r["joints"])) if r["joints"] else "arm"
+        named = "; ".join(_found_text(by_key[(r["effect"], j)]) for j in r["named"]
+                          if (r["effect"], j) in by_key)
+        if not r["joints"] and r["named"]:
+            named = "; ".join(_found_text(f) for f in findings if f["effect"] == r["effect"])
+        missed = ",".join("arm" if j is None else str(j) for j in r["missed"])
+        lines.append(f"  {r['effect']:<22} {where:<14} injected {mag}")
+        lines.append(f"  {'':<22} {'':<14} named: {named or 'none'}; missed: {missed or 'none'}")
+    for f in invented:
+        lines.append(f"  invented: {_found_text(f)}")
+    return lines
+
+
+def _found_text(f: dict) -> str:
+    mag = ", ".join(f"{k} {_short(v)}" for k, v in (f.get("magnitude") or {}).items() if k != "coefficients")
+    return (f"{f['effect']} on joint {f['joint']} ({f['shrink_pct']:.1f} % smaller RMS"
+            + (f"; fitted {mag}" if mag else "") + ")")
+
+
+def _short(v) -> str:
+    if isinstance(v, float):
+        return f"{v:.3g}"
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_short(x) for x in v) + "]"
+    return str(v)

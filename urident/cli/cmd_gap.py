@@ -36,6 +36,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="rows of the identification logs (overrides --rows for them)")
     p.add_argument("--valid-rows", metavar="FIRST-LAST", type=options.row_range, default=None,
                    help="rows of the validation logs (overrides --rows for them)")
+    p.add_argument("--check", nargs="+", metavar="LOG", default=None,
+                   help="held-out log(s), used neither for identification nor for selection: each "
+                        "finding's predicted and checked shrink with a 95 %% interval; a finding "
+                        "that does not hold there is marked")
+    p.add_argument("--check-rows", metavar="FIRST-LAST", type=options.row_range, default=None,
+                   help="rows of the check logs (overrides --rows for them)")
     p.add_argument("--drive-gains", metavar="G1,...,G6", type=options.drive_gains, default=None,
                    help="N·m per A of motor current (default: the parameters file's or robot file's)")
     p.add_argument("--effects", metavar="NAMES", type=options.name_list(_catalogue), default=None,
@@ -92,8 +98,18 @@ def run(args: argparse.Namespace) -> int:
     drive_gains = None if args.drive_gains is None else np.array(args.drive_gains)
     ident = _load_all(args.ident, args, args.ident_rows, spec.name)
     valid = _load_all(args.valid, args, args.valid_rows, spec.name)
+    check = None
+    if args.check:
+        _refuse_reused(args)
+        check_logs = _load_all(args.check, args, args.check_rows, spec.name)
     result = diagnose(ident, valid, spec, params=params, drive_gains=drive_gains, config=config)
     print(format_report(result))
+    if args.check:
+        from urident.gap.check import check_findings, format_check
+
+        check = check_findings(result, check_logs, spec, drive_gains=drive_gains, params=params)
+        print()
+        print(format_check(check))
     note = spec.nominal_note(None if drive_gains is None else ("inertia_com", "rotor_inertia",
                                                               "viscous_friction", "coulomb_friction"))
     if note:
@@ -101,7 +117,10 @@ def run(args: argparse.Namespace) -> int:
     if args.json_out:
         from urident.fileio import write_text_atomic
 
-        text = json.dumps(result.as_dict(), indent=1, allow_nan=False, default=_json_default)
+        doc = result.as_dict()
+        if check is not None:
+            doc["check"] = check.as_dict()
+        text = json.dumps(doc, indent=1, allow_nan=False, default=_json_default)
         write_text_atomic(args.json_out, text, fsync=False, overwrite=args.overwrite)
         print(f"\nreport written to {args.json_out}")
     rec = options.open_recording_from_args(args, "urident_gap")
@@ -109,6 +128,22 @@ def run(args: argparse.Namespace) -> int:
         _to_rerun(result, spec, rec)
         print(f"residual maps {options.rerun_destination(args)}", file=sys.stdout)
     return 0
+
+
+def _refuse_reused(args) -> None:
+    """A check log must be held out: the same file with the same rows as an identification or
+    validation log is refused (another row range of the same file is fine)."""
+    import os
+
+    from urident.errors import ConfigError
+
+    rows = lambda r: r if r is not None else getattr(args, "log_rows", None)   # noqa: E731
+    used = {(os.path.realpath(p), rows(args.ident_rows)) for p in args.ident}
+    used |= {(os.path.realpath(p), rows(args.valid_rows)) for p in args.valid}
+    for p in args.check:
+        if (os.path.realpath(p), rows(args.check_rows)) in used:
+            raise ConfigError(f"--check {p}: also an identification or validation log with the same rows "
+                              "(give another log or another --check-rows range)")
 
 
 def _json_default(x):

@@ -15,7 +15,7 @@ blocked cross-validation inside the validation logs, held-out scores), :mod:`.bo
 bootstrap over time), :mod:`.significance` (the held-out tests of a candidate), :mod:`.selection`
 (stepwise selection, confounds), :mod:`.where` (the where-text), :mod:`.config` (settings),
 :mod:`.results` (result types and JSON), :mod:`.diagnose` (the entry points), :mod:`.report`
-(console table and markdown). How the thresholds were calibrated: ``docs/gap-calibration.md``.
+(console table and markdown), :mod:`.check` (the findings scored on held-out logs, ``--check``). How the thresholds were calibrated: ``docs/gap-calibration.md``.
 """
 
 from urident.gap.config import NO_EFFECT, GapConfig

@@ -25,7 +25,7 @@ from urident.gap.residual import fit_baseline, make_context
 from urident.gap.results import GapResult, e_n, rms
 from urident.gap.scoring import Scorer
 from urident.gap.selection import select
-from urident.gap.where import describe_where
+from urident.gap.where import describe_unexplained, describe_where
 
 
 def diagnose(ident_recordings: Sequence, valid_recordings: Sequence, spec, *, params=None,
@@ -56,5 +56,6 @@ def diagnose_prepared(spec, ident: GapSet, valid: GapSet, *, params=None,
 
     findings, steps, confounds, current = select(scorer, pool, block, config, ctx_v, spec)
     final_r = current.residual
+    where["unexplained"] = describe_unexplained(ctx_v, final_r)   # beyond the catalogue
     return GapResult(spec.name, model, ctx_i, ctx_v, e_n(r0), rms(r0), e_n(final_r), rms(final_r),
                      findings, current, steps, confounds, where, config, scorer)

@@ -52,8 +52,9 @@ def format_report(res, top: int = 12) -> str:
         lines.append("Findings (stepwise selection: forward, then backward):")
         for k, x in enumerate(res.findings):
             mag = ", ".join(f"{key} = {_fmt(v)}" for key, v in x.magnitude.items() if key != "coefficients")
-            also = [jj for jj in x.joints if jj != x.joint]
-            where = f"joint {x.joint}" + (f" (also {', '.join(map(str, also))})" if also else "")
+            where = f"joint {x.joint}"
+            if len(x.joints) > 1:     # an effect on all joints: each joint with the torque it explains
+                where = "joints " + ", ".join(f"{jj} ({t:.3g} N·m RMS)" for jj, t in zip(x.joints, x.torque_nm))
             lines.append(f"  {k + 1}. {x.effect} on {where} [{x.mode}] {x.variant}: "
                          f"RMS {x.rms_before_nm:.3f} -> {x.rms_after_nm:.3f} N·m "
                          f"({x.shrink_pct:.1f} % smaller), confidence {x.confidence}")
@@ -63,6 +64,16 @@ def format_report(res, top: int = 12) -> str:
             if x.confounded_with:
                 lines.append(f"     confounded with: {'; '.join(x.confounded_with)} "
                              "(the data cannot tell them apart)")
+    left = res.where.get("unexplained") or []
+    if left:
+        lines.append("")
+        lines.append("Beyond the catalogue (residual left after the findings, above the noise):")
+        for u in left:
+            lines.append(f"  joint {u['joint']}: RMS {u['rms_nm']:.3f} N·m, {u['noise_ratio']:.1f} x its "
+                         f"white-noise torque ({u['noise_nm']:.3f} N·m); structured part "
+                         f"{u['structured_rms_nm']:.3f} N·m")
+            for text in u["regimes"] or ["spread over all regimes"]:
+                lines.append(f"     where: {text}")
     lines.append("")
     lines.append("How far (validation):")
     lines.append("  joint   baseline [Nm]   final [Nm]   shrink")

@@ -69,11 +69,14 @@ class Finding:
     gain_ci95_nm2: tuple[float, float]
     magnitude: dict
     confounded_with: tuple[str, ...] = ()
-    joints: tuple[int, ...] = ()     # 1-based; an effect on all joints: every joint where its
-                                     # share of the joint's torque is >= MAIN_SHARE of the largest
+    joints: tuple[int, ...] = ()     # 1-based, every joint it changes, most torque explained first
+    torque_nm: tuple[float, ...] = ()        # per joint of ``joints``: RMS of its correction [N·m]
+    joint_shrink_pct: tuple[float, ...] = ()  # per joint of ``joints``: validation RMS shrink [%]
 
     def as_dict(self) -> dict:
-        return {"joint": self.joint, "joints": list(self.joints or (self.joint,)), "effect": self.effect, "variant": self.variant, "mode": self.mode,
+        return {"joint": self.joint, "joints": list(self.joints or (self.joint,)),
+                "torque_nm": list(self.torque_nm), "joint_shrink_pct": list(self.joint_shrink_pct),
+                "effect": self.effect, "variant": self.variant, "mode": self.mode,
                 "regime": self.regime, "rms_before_nm": self.rms_before_nm,
                 "rms_after_nm": self.rms_after_nm, "shrink_pct": self.shrink_pct,
                 "confidence": self.confidence, "gain_ci95_nm2": list(self.gain_ci95_nm2),

@@ -24,9 +24,9 @@ from urident.gap.bootstrap import block_bootstrap_means, interval
 from urident.gap.candidates import Candidate
 from urident.gap.config import GapConfig
 from urident.gap.residual import SetContext
-from urident.gap.results import Finding, Score
+from urident.gap.results import Finding, Score, rms
 from urident.gap.scoring import Fit, Scorer, lstsq
-from urident.gap.significance import MAIN_SHARE, admissible, score_all, shares
+from urident.gap.significance import admissible, noise_sigma, score_all
 from urident.gap.where import finding_regime
 
 
@@ -73,7 +73,7 @@ def select(scorer: Scorer, pool: list[Candidate], block: int, config: GapConfig,
             best = simpler
             conf = confounded(best, scores, block, config)
         confounds += confound_rows(step, best, conf)
-        findings.append(make_finding(best, conf, ctx_v, spec))
+        findings.append(make_finding(best, conf, ctx_v, spec, config))
         selected.append(best.candidate)
         current = best.fit
 
@@ -88,7 +88,7 @@ def select(scorer: Scorer, pool: list[Candidate], block: int, config: GapConfig,
                 s = next(x for x in scores if x.candidate is c)
                 conf = confounded(s, scores, block, config)
                 confounds += confound_rows(step, s, conf)
-                findings.append(make_finding(s, conf, ctx_v, spec))
+                findings.append(make_finding(s, conf, ctx_v, spec, config))
                 current = s.fit
 
     return findings, steps, confounds, current
@@ -202,12 +202,13 @@ def confounded(best: Score, scores: list[Score], block: int, config: GapConfig) 
     return out
 
 
-def make_finding(best: Score, conf: list[Score], ctx: SetContext, spec) -> Finding:
+def make_finding(best: Score, conf: list[Score], ctx: SetContext, spec,
+                 config: GapConfig | None = None) -> Finding:
+    """The report's finding of ``best``. An effect on all joints (payload_error) is reported on
+    every joint it changes (:func:`changed_joints`), ordered by the torque it explains there;
+    its ``joint`` (and the RMS and shrink figures) is the first of them, the most affected."""
     c = best.candidate
     j = best.joint
-    before = best.rms_before[j]
-    after = best.rms_after[j]
-    regime = finding_regime(best, ctx)
     lo, hi = best.ci
     labels = tuple(label(s) for s in conf)
     if labels:
@@ -216,10 +217,26 @@ def make_finding(best: Score, conf: list[Score], ctx: SetContext, spec) -> Findi
         z = best.gain / max((hi - lo) / (2 * 1.96), 1e-300)
         confidence = "high" if (z > 4 and best.shrink_pct >= 10) else "medium"
     coef = best.fit.coefficients()[c]
-    joints = (j + 1,)
+    torque = rms(best.change)
+    joints = (j,)
     if c.joint is None:
-        share = shares(best.change, ctx.tau)
-        joints = tuple(int(k) + 1 for k in np.flatnonzero(share >= MAIN_SHARE * share.max()))
-    return Finding(j + 1, c.effect, c.variant, c.mode, regime, float(before), float(after),
-                   best.shrink_pct, confidence, (lo, hi), c.magnitude(coef, spec),
-                   labels, joints)
+        ratio = (config or GapConfig()).cv_min_noise_ratio
+        joints = changed_joints(best.change, noise_sigma(ctx.residual), ratio) or (j,)
+        j = joints[0]
+    regime = finding_regime(best, ctx, j)
+    before, after = best.rms_before, best.rms_after
+    shrink = [float(100.0 * (1.0 - after[k] / before[k])) if before[k] > 0 else 0.0 for k in joints]
+    return Finding(j + 1, c.effect, c.variant, c.mode, regime, float(before[j]), float(after[j]),
+                   shrink[0], confidence, (lo, hi), c.magnitude(coef, spec),
+                   labels, tuple(k + 1 for k in joints), tuple(float(torque[k]) for k in joints),
+                   tuple(shrink))
+
+
+def changed_joints(change: np.ndarray, sigma: np.ndarray, ratio: float) -> tuple[int, ...]:
+    """0-based joints where a correction ``change`` (N, 6) has an RMS of at least ``ratio`` times
+    the joint's white-noise torque ``sigma``, ordered by that RMS (absolute torque explained),
+    largest first. Why absolute torque: a payload's largest *relative* shrink is on a wrist joint
+    whose torque is small; the joints it loads most are the shoulder and elbow."""
+    t = rms(change)
+    keep = [k for k in np.argsort(-t, kind="stable") if t[k] > 0 and t[k] >= ratio * sigma[k]]
+    return tuple(int(k) for k in keep)

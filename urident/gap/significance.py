@@ -122,11 +122,6 @@ def plausible(c: Candidate, beta: np.ndarray) -> bool:
     return True
 
 
-#: An effect on all joints "affects" every joint where its share of the torque is at least this
-#: fraction of the largest share (the main joint's).
-MAIN_SHARE = 0.7
-
-
 def shares(change: np.ndarray, tau: np.ndarray) -> np.ndarray:
     rms_tau = rms(tau)
     return rms(change) / np.where(rms_tau > 0, rms_tau, np.inf)
@@ -134,6 +129,7 @@ def shares(change: np.ndarray, tau: np.ndarray) -> np.ndarray:
 
 def main_joint(change: np.ndarray, tau: np.ndarray) -> int:
     """The joint of an effect on all joints (payload_error): where its torque is the largest
-    share of the joint's measured torque (RMS over RMS). The blind benchmark names the true
-    payload's joint the same way."""
+    share of the joint's measured torque (RMS over RMS): the joint its significance is tested
+    on. Its finding is reported on the joints it changes most in absolute torque
+    (:func:`urident.gap.selection.changed_joints`)."""
     return int(np.argmax(shares(change, tau)))
