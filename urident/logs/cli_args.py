@@ -1,6 +1,6 @@
 """Shared command-line options for subcommands that read logs (identify, validate, gap, view).
 
-    add_log_arguments(parser)                     # --format, --columns, --rows, --drop-bad
+    add_log_arguments(parser)       # --format, --columns, --rows, --drop-bad, --topic, --effort
     rec = load_log_from_args(args.log, args, robot=args.robot)
 """
 
@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 from typing import TextIO
 
-from urident.cli.options import checked, row_range
+from urident.cli.options import checked, ros_topic, row_range
 
 from .foreign import PRESETS, parse_column_map
 from .reader import describe_dropped, load_log
@@ -52,7 +52,23 @@ def add_log_arguments(parser: argparse.ArgumentParser) -> None:
         "--drop-bad",
         dest="log_drop_bad",
         action="store_true",
-        help="drop corrupt rows (reported) instead of rejecting the log",
+        help="drop corrupt rows or bag messages (reported) instead of rejecting the log",
+    )
+    group.add_argument(
+        "--topic",
+        dest="log_topic",
+        metavar="TOPIC",
+        default=None,
+        type=ros_topic,
+        help="rosbag2 input: the sensor_msgs/JointState topic (default /joint_states)",
+    )
+    group.add_argument(
+        "--effort",
+        dest="log_effort",
+        default=None,
+        choices=("current", "torque"),
+        help="rosbag2 input: JointState effort holds motor currents (default, UR's driver) or "
+        "joint torques",
     )
 
 
@@ -71,8 +87,12 @@ def load_log_from_args(
         drop_bad=getattr(args, "log_drop_bad", False),
         column_map=getattr(args, "log_columns", None),
         format=getattr(args, "log_format", None),
+        topic=getattr(args, "log_topic", None),
+        effort=getattr(args, "log_effort", None),
     )
     line = describe_dropped(recording)
     if line:
         print(f"urident: warning: {line}", file=report or sys.stderr)
+    for note in recording.metadata.get("notes") or ():  # what a bag loader decided (time source, stops)
+        print(f"urident: note: {note}", file=report or sys.stderr)
     return recording
