@@ -243,3 +243,42 @@ def test_bad_inputs_are_one_line(tmp_path, sample, capsys):
         assert main(argv + ["--save", str(tmp_path / "x.rrd")]) == 2, argv
         err = capsys.readouterr().err.strip()
         assert err.startswith("urident: error:") and len(err.splitlines()) == 1 and text in err, err
+
+
+# ------------------------------------------------------------------------------ export
+@pytest.mark.parametrize("storage", list(STORAGES))
+def test_convert_round_trip_identifies_the_same_parameters(tmp_path, storage, capsys):
+    bag = tmp_path / "ident_bag"
+    assert main(["convert", str(SAMPLE), "--bag", str(bag), "--storage", storage,
+                 "--tf-prefix", "ur_"]) == 0
+    assert is_bag(bag) and (bag / "metadata.yaml").is_file()
+    for path, out in ((SAMPLE, "c.yaml"), (bag, "b.yaml")):
+        assert main(["identify", str(path), "--robot", "ur5", "--method", "all",
+                     "--out", str(tmp_path / out)]) == 0
+    pc, pb = _params(tmp_path / "c.yaml"), _params(tmp_path / "b.yaml")
+    assert pc.size > 60 and pc.shape == pb.shape
+    np.testing.assert_allclose(pb, pc, rtol=1e-9, atol=1e-12)
+
+
+def test_convert_refuses_outputs_and_keeps_the_old_bag_on_failure(tmp_path, capsys):
+    bag = tmp_path / "bag"
+    assert main(["convert", str(SAMPLE), "--bag", str(bag)]) == 0
+    before = sorted(p.name for p in bag.iterdir())
+    (tmp_path / "file").write_text("x")
+    (tmp_path / "dir").mkdir()
+    (tmp_path / "link").symlink_to(bag)
+    cases = [(bag, [], "exists; pass --overwrite"), (tmp_path / "file", ["--overwrite"], "not a rosbag2"),
+             (tmp_path / "dir", ["--overwrite"], "not a rosbag2"), (tmp_path / "link", [], "symbolic link"),
+             (tmp_path / "no" / "bag", [], "does not exist")]
+    capsys.readouterr()
+    for out, extra, text in cases:
+        assert main(["convert", str(SAMPLE), "--bag", str(out), *extra]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and text in err, err
+    # an input error after the output check: the existing bag is untouched, no temporary left
+    assert main(["convert", str(tmp_path / "missing.csv"), "--bag", str(bag), "--overwrite"]) == 2
+    assert sorted(p.name for p in bag.iterdir()) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bag", "dir", "file", "link"]
+    assert main(["convert", str(SAMPLE), "--bag", str(bag), "--overwrite", "--storage", "sqlite3"]) == 0
+    assert sorted(p.name for p in bag.iterdir()) == ["bag.db3", "metadata.yaml"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bag", "dir", "file", "link"]

@@ -167,6 +167,16 @@ def ros_topic(text: str) -> str:
     return text
 
 
+_TF_PREFIX = re.compile(r"^[A-Za-z][A-Za-z0-9_/]*[_/]$")
+
+
+def tf_prefix(text: str) -> str:
+    """A tf_prefix of UR's driver (``ur_``, ``left/``): prepended to the joint names."""
+    if not _TF_PREFIX.match(text):
+        raise _fail("a tf_prefix ending in _ or / such as ur_", text)
+    return text
+
+
 def checked(parse: Callable[[str], Any]) -> Callable[[str], str]:
     """A validator from a library parser (raising ValueError/ConfigError): the text is checked at
     parse time and kept as given."""

@@ -215,7 +215,7 @@ class _BagLoader:
                 continue
             msg = store.deserialize_cdr(raw, conn.msgtype)
             stamp_ns = int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
-            self.stamps[n] = stamp_ns * 1e-9
+            self.stamps[n] = stamp_ns / 1e9
             names = list(msg.name)
             if index is None or list(index) != names:
                 new = self._match(names, joints)
@@ -241,7 +241,7 @@ class _BagLoader:
         stamp = np.array(stamps, dtype=np.int64)
         if stamp.size and not stamp.any():
             stamp = np.array(recv, dtype=np.int64)
-            self.stamps.update(zip(numbers, stamp * 1e-9))
+            self.stamps.update(zip(numbers, stamp / 1e9))
             self.notes.append(f"{self.path}: {self.topic} messages carry no header.stamp; "
                               "time is the bag's receive time")
             self.time_source = "bag receive time"
@@ -251,7 +251,8 @@ class _BagLoader:
             self.notes.append(f"{self.where(order_changes[0])}: joint order changes "
                               f"({len(order_changes)} time(s)); joints matched by name")
         self.handle(issues)
-        msgs = _Messages(stamp * 1e-9, np.array(values, dtype=np.float64).reshape(-1, 3 * N_JOINTS),
+        msgs = _Messages(stamp / 1e9,  # correctly rounded: the CSV's decimal times exactly
+                         np.array(values, dtype=np.float64).reshape(-1, 3 * N_JOINTS),
                          np.array(numbers, dtype=np.int64), [])
         return msgs, status
 
