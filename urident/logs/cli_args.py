@@ -1,17 +1,19 @@
 """Shared command-line options for subcommands that read logs (identify, validate, gap, view).
 
-    add_log_arguments(parser)       # --format, --columns, --rows, --drop-bad, --topic, --effort
+    add_log_arguments(parser)       # --format, --columns, --rows, --drop-bad, --topic, --effort, --signal
     rec = load_log_from_args(args.log, args, robot=args.robot)
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from pathlib import Path
 from typing import TextIO
 
 from urident.cli.options import checked, ros_topic, row_range
+from urident.errors import LogFormatError
 
 from .foreign import PRESETS, parse_column_map
 from .reader import describe_dropped, load_log
@@ -70,6 +72,14 @@ def add_log_arguments(parser: argparse.ArgumentParser) -> None:
         help="rosbag2 input: JointState effort holds motor currents (default, UR's driver) or "
         "joint torques",
     )
+    group.add_argument(
+        "--signal",
+        dest="log_signal",
+        default=None,
+        choices=("torque", "current"),
+        help="torques from the log's joint torques or from current x drive gains (default: the "
+        "joint torques when the log carries valid ones, else the current)",
+    )
 
 
 def load_log_from_args(
@@ -90,6 +100,16 @@ def load_log_from_args(
         topic=getattr(args, "log_topic", None),
         effort=getattr(args, "log_effort", None),
     )
+    signal = getattr(args, "log_signal", None)
+    if signal is not None:  # read by urident.ident.torque.torque_signal
+        metadata = {**recording.metadata, "signal": signal}
+        if signal == "current":
+            recording = dataclasses.replace(recording, tau=None, metadata=metadata)
+        elif recording.tau is None:
+            raise LogFormatError(f"{path}: --signal torque: the log carries no joint torque "
+                                 "(actual_current_as_torque, or a bag read with --effort torque)")
+        else:
+            recording = dataclasses.replace(recording, metadata=metadata)
     line = describe_dropped(recording)
     if line:
         print(f"urident: warning: {line}", file=report or sys.stderr)
