@@ -108,7 +108,6 @@ class _Messages:
     stamp: np.ndarray      # (M,) s, header.stamp (or receive time)
     values: np.ndarray     # (M, 18) q, qd, effort in the robot's joint order (NaN: missing)
     number: np.ndarray     # (M,) 1-based message number on the topic
-    issues: list[Issue]    # messages that could not be mapped (missing joints, bad arrays)
 
 
 def load_bag(
@@ -253,7 +252,7 @@ class _BagLoader:
         self.handle(issues)
         msgs = _Messages(stamp / 1e9,  # correctly rounded: the CSV's decimal times exactly
                          np.array(values, dtype=np.float64).reshape(-1, 3 * N_JOINTS),
-                         np.array(numbers, dtype=np.int64), [])
+                         np.array(numbers, dtype=np.int64))
         return msgs, status
 
     def _one_publisher(self, conns):
@@ -294,9 +293,8 @@ class _BagLoader:
 
     def _row(self, msg, cols, n_names, number, issues) -> np.ndarray | None:
         row = np.empty(3 * N_JOINTS)
-        for k, (field, label) in enumerate((("position", "position"), ("velocity", "velocity"),
-                                            ("effort", "effort"))):
-            arr = np.asarray(getattr(msg, field), dtype=np.float64)
+        for k, label in enumerate(("position", "velocity", "effort")):
+            arr = np.asarray(getattr(msg, label), dtype=np.float64)
             if arr.shape != (n_names,):
                 what = "empty" if arr.size == 0 else f"{arr.size} values for {n_names} names"
                 issues.append(Issue(number, label, "malformed", f"{label} array is {what}"))
