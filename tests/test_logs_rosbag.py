@@ -222,6 +222,26 @@ def test_several_publishers(tmp_path, sample, storage):
     assert rec.dropped["reasons"] == {"other publisher": 150}
 
 
+def test_several_publishers_on_one_connection(tmp_path, sample):
+    """rosbag2 lists one offered QoS profile per publisher of a recorded topic."""
+    store = _store()
+    msgs = messages_of(sample, 200)
+    js = store.types["sensor_msgs/msg/JointState"]
+    header, time = store.types["std_msgs/msg/Header"], store.types["builtin_interfaces/msg/Time"]
+    bag = tmp_path / "b"
+    with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as w:
+        c = w.add_connection("/joint_states", "sensor_msgs/msg/JointState", typestore=store,
+                             offered_qos_profiles=[_qos(10), _qos(1)])
+        for ns, names, q, qd, eff in msgs:
+            msg = js(header=header(stamp=time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id=""),
+                     name=names, position=q, velocity=qd, effort=eff)
+            w.write(c, ns, store.serialize_cdr(msg, msg.__msgtype__))
+    with pytest.raises(LogFormatError, match=r"several publishers \(2 publishers\)"):
+        load_log(bag, robot="ur5")
+    rec = load_log(bag, robot="ur5", drop_bad=True)  # checked message by message
+    assert len(rec) == 200 and any("2 publishers" in n for n in rec.metadata["notes"])
+
+
 def test_gap_is_named(tmp_path, sample):
     msgs = messages_of(sample, 300)
     del msgs[100:140]
