@@ -26,6 +26,7 @@ BASE = {
     "validate": ["x.csv", "--params", "p.yaml"],
     "gap": ["--robot", "ur5", "--ident", "a.csv", "--valid", "b.csv"],
     "view": ["x.csv"],
+    "convert": ["x.csv", "--bag", "out"],
     "simulate": ["--trajectory", "t.yaml", "--out", "x.csv"],
     "sim-controller": [],
 }
@@ -33,7 +34,7 @@ BASE = {
 # error naming the file (tests/test_inputs.py, tests/test_outputs.py)
 FREE_TEXT = {"--robot", "--out", "--out-root", "--trajectory", "--config", "--params", "--urdf",
              "--report", "--png", "--json-out", "--save", "--host", "--effects", "--ident",
-             "--valid", "--rerun"}
+             "--valid", "--rerun", "--bag"}
 # text no validator accepts
 ALWAYS_BAD = ["nan", "inf", "-inf", "NaN", "abc", "", " ", "1e999", "1,2,3,4,5", "0x1g", "1;2"]
 
@@ -116,6 +117,10 @@ def _bad_values(action: argparse.Action) -> st.SearchStrategy[str]:
         return st.one_of(always, st.sampled_from(["4.1", "5", "6.0.0", "5.-1", "5.1.2.3.4"]))
     if kind == "_parse_fault":
         return st.one_of(always, st.sampled_from(["boom@1", "drop@x", "drop@-1", "stale@1:-2"]))
+    if kind == "tf_prefix":
+        return st.one_of(always, st.sampled_from(["ur", "_ur_", "1_", "u r_"]))
+    if kind == "ros_topic":
+        return st.one_of(always, st.sampled_from(["joint_states", "/", "//a", "/a/", "/1a", "/a b"]))
     if kind in ("finite_float", "seed", "checked", "parse_column_map"):
         return always
     raise AssertionError(f"{action.option_strings[0]}: no bad values known for validator {kind!r}")

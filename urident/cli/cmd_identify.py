@@ -211,6 +211,9 @@ def run(args: argparse.Namespace) -> int:
             save_params(models[m], sibling(out, m), overwrite=args.overwrite)
             written.append(str(sibling(out, m)))
     text = comparison_report(models)
+    from urident.ident.torque import describe_signal
+
+    text = "\n".join(describe_signal(r) for r in recordings) + "\n" + text
     if preset_name(args):
         text = f"preset {preset_name(args)}\n" + text
     if cv_text:

@@ -22,6 +22,7 @@ COMMANDS = (
     "validate",
     "gap",
     "view",
+    "convert",
     "simulate",
     "sim_controller",
 )

@@ -156,6 +156,27 @@ def row_range(text: str) -> tuple[int, int]:
             from None
 
 
+_ROS_TOPIC = re.compile(r"^(/[A-Za-z_][A-Za-z0-9_]*)+$")
+
+
+def ros_topic(text: str) -> str:
+    """A fully qualified ROS 2 topic name (``/joint_states``, ``/ur/joint_states``): a bag
+    records topics with their namespace."""
+    if not _ROS_TOPIC.match(text):
+        raise _fail("a fully qualified ROS 2 topic name such as /joint_states", text)
+    return text
+
+
+_TF_PREFIX = re.compile(r"^[A-Za-z][A-Za-z0-9_/]*[_/]$")
+
+
+def tf_prefix(text: str) -> str:
+    """A tf_prefix of UR's driver (``ur_``, ``left/``): prepended to the joint names."""
+    if not _TF_PREFIX.match(text):
+        raise _fail("a tf_prefix ending in _ or / such as ur_", text)
+    return text
+
+
 def checked(parse: Callable[[str], Any]) -> Callable[[str], str]:
     """A validator from a library parser (raising ValueError/ConfigError): the text is checked at
     parse time and kept as given."""

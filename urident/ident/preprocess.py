@@ -24,7 +24,8 @@ zero-phase filter): the same filter s·L(s) at the same corner, run forwards onl
 discretised on each step's actual Δt, y ← y + (1 − exp(−w·Δt))·(u − y). It lags by about 1/w
 (16 ms at 10 Hz) and has magnitude |L| instead of |L|²; the first sample's q̈ is 0.
 
-Torques: τ = drive_gains · current (see :mod:`urident.ident.torque`), optionally low-passed with
+Torques: the log's joint torques when it carries valid ones, else τ = drive_gains · current
+(:func:`urident.ident.torque.measured_torque`, ``--signal``), optionally low-passed with
 the same zero-phase L (``torque_filter_hz``). Rest trimming drops leading and trailing samples where
 every |q̇_j| is below ``rest_threshold``; decimation keeps every k-th sample after filtering.
 """
@@ -231,12 +232,13 @@ def _check_finite(name: str, x: np.ndarray, source: str) -> None:
 
 def preprocess(recording, spec, config: PreprocessConfig | None = None,
                drive_gains: Sequence[float] | None = None, tau: np.ndarray | None = None,
-               causal: bool = False) -> Prepared:
-    """One :class:`urident.logs.Recording` → :class:`Prepared`. Torques are the current times the
-    drive gains (the robot file's, or ``drive_gains``); pass ``tau`` (N, 6) to use measured joint
-    torques instead. The recording's ``robot`` must match ``spec``. ``causal``: accelerations by
+               causal: bool = False, signal: str | None = None) -> Prepared:
+    """One :class:`urident.logs.Recording` → :class:`Prepared`. Torques are the recording's joint
+    torques when it carries valid ones, else the current times the drive gains (the robot file's,
+    or ``drive_gains``): :func:`urident.ident.torque.measured_torque`, ``signal`` forces one;
+    pass ``tau`` (N, 6) to use other torques. The recording's ``robot`` must match ``spec``. ``causal``: accelerations by
     the causal mode (module doc; no torque filter then)."""
-    from urident.ident.torque import resolve_drive_gains, torque_from_current
+    from urident.ident.torque import measured_torque, resolve_drive_gains
 
     config = config or PreprocessConfig()
     source = str(recording.source) if recording.source is not None else "<recording>"
@@ -248,7 +250,7 @@ def preprocess(recording, spec, config: PreprocessConfig | None = None,
     for name in ("q", "qd", "current"):
         _check_finite(name, getattr(recording, name), source)
     gains = resolve_drive_gains(spec, drive_gains)
-    torque = torque_from_current(recording.current, gains) if tau is None else np.asarray(tau, float)
+    torque = measured_torque(recording, gains, signal) if tau is None else np.asarray(tau, float)
     _check_finite("tau", torque, source)
     qd = np.asarray(recording.qd, dtype=float)
     if causal and config.torque_filter_hz is not None:

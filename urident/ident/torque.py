@@ -41,6 +41,57 @@ def torque_from_current(current: np.ndarray, drive_gains: np.ndarray) -> np.ndar
     return np.asarray(current, dtype=float) * np.asarray(drive_gains, dtype=float)
 
 
+#: Where the joint torques of a recording come from (``--signal``).
+SIGNALS = ("torque", "current")
+
+
+def torque_invalid(recording) -> str | None:
+    """Why the recording's joint torques (``Recording.tau``: RTDE actual_current_as_torque or a
+    bag's torque effort) cannot be used, or None when they can."""
+    tau = recording.tau
+    if tau is None:
+        return "the log carries no joint torque"
+    if not np.all(np.isfinite(tau)):
+        return "its joint torques hold NaN/inf"
+    if not np.any(tau):  # a controller that lists the field but never fills it
+        return "its joint torques are all zero"
+    return None
+
+
+def torque_signal(recording, signal: str | None = None) -> str:
+    """The signal the torques of ``recording`` come from: ``signal`` if given (or the
+    ``--signal`` its loader recorded, ``metadata["signal"]``; ``torque`` must be valid), else
+    ``torque`` when the log carries valid joint torques, else ``current``."""
+    signal = signal or recording.metadata.get("signal")
+    why = torque_invalid(recording)
+    if signal is None:
+        return "current" if why else "torque"
+    if signal not in SIGNALS:
+        raise ConfigError(f"signal {signal!r}: expected one of {', '.join(SIGNALS)}")
+    if signal == "torque" and why:
+        raise ConfigError(f"{recording.source}: --signal torque: {why}; use --signal current")
+    return signal
+
+
+def measured_torque(recording, drive_gains: np.ndarray, signal: str | None = None) -> np.ndarray:
+    """(N, 6) joint torques [N·m] of ``recording`` by :func:`torque_signal`: the recorded joint
+    torques, or the motor currents times ``drive_gains``."""
+    if torque_signal(recording, signal) == "torque":
+        return np.asarray(recording.tau, dtype=float)
+    return torque_from_current(recording.current, drive_gains)
+
+
+def describe_signal(recording, signal: str | None = None) -> str:
+    """One line for reports: which signal gave the torques, and why."""
+    name = recording.source.name if recording.source is not None else "log"
+    signal = signal or recording.metadata.get("signal")
+    if torque_signal(recording, signal) == "torque":
+        return f"torques of {name}: the recorded joint torques"
+    why = torque_invalid(recording)
+    reason = "" if signal == "current" or why is None else f" ({why})"
+    return f"torques of {name}: motor current x drive gains{reason}"
+
+
 @dataclass(frozen=True)
 class DriveGainEstimate:
     gains: np.ndarray        # (6,) [N·m/A]

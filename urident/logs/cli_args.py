@@ -1,17 +1,19 @@
 """Shared command-line options for subcommands that read logs (identify, validate, gap, view).
 
-    add_log_arguments(parser)     # --format, --columns, --rows, --drop-bad, --allow-aborted, --allow-gaps
+    add_log_arguments(parser)   # --format, --columns, --rows, --drop-bad, --topic, --effort, --signal,
+                                # --allow-aborted, --allow-gaps
     rec = load_log_from_args(args.log, args, robot=args.robot)   # refuses aborted/gapped logs unless allowed
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from pathlib import Path
 from typing import TextIO
 
-from urident.cli.options import checked, row_range
+from urident.cli.options import checked, ros_topic, row_range
 from urident.errors import LogFormatError
 
 from .foreign import PRESETS, parse_column_map
@@ -54,7 +56,31 @@ def add_log_arguments(parser: argparse.ArgumentParser) -> None:
         "--drop-bad",
         dest="log_drop_bad",
         action="store_true",
-        help="drop corrupt rows (reported) instead of rejecting the log",
+        help="drop corrupt rows or bag messages (reported) instead of rejecting the log",
+    )
+    group.add_argument(
+        "--topic",
+        dest="log_topic",
+        metavar="TOPIC",
+        default=None,
+        type=ros_topic,
+        help="rosbag2 input: the sensor_msgs/JointState topic (default /joint_states)",
+    )
+    group.add_argument(
+        "--effort",
+        dest="log_effort",
+        default=None,
+        choices=("current", "torque"),
+        help="rosbag2 input: JointState effort holds motor currents (default, UR's driver) or "
+        "joint torques",
+    )
+    group.add_argument(
+        "--signal",
+        dest="log_signal",
+        default=None,
+        choices=("torque", "current"),
+        help="torques from the log's joint torques or from current x drive gains (default: the "
+        "joint torques when the log carries valid ones, else the current)",
     )
     group.add_argument(
         "--allow-aborted",
@@ -86,12 +112,26 @@ def load_log_from_args(
         drop_bad=getattr(args, "log_drop_bad", False),
         column_map=getattr(args, "log_columns", None),
         format=getattr(args, "log_format", None),
+        topic=getattr(args, "log_topic", None),
+        effort=getattr(args, "log_effort", None),
     )
+    signal = getattr(args, "log_signal", None)
+    if signal is not None:  # read by urident.ident.torque.torque_signal
+        metadata = {**recording.metadata, "signal": signal}
+        if signal == "current":
+            recording = dataclasses.replace(recording, tau=None, metadata=metadata)
+        elif recording.tau is None:
+            raise LogFormatError(f"{path}: --signal torque: the log carries no joint torque "
+                                 "(actual_current_as_torque, or a bag read with --effort torque)")
+        else:
+            recording = dataclasses.replace(recording, metadata=metadata)
     line = describe_dropped(recording)
     if line:
         print(f"urident: warning: {line}", file=report or sys.stderr)
     check_log_usable(recording, allow_aborted=getattr(args, "log_allow_aborted", False),
                      allow_gaps=getattr(args, "log_allow_gaps", False))
+    for note in recording.metadata.get("notes") or ():  # what a bag loader decided (time source, stops)
+        print(f"urident: note: {note}", file=report or sys.stderr)
     return recording
 
 

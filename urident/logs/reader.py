@@ -12,6 +12,7 @@ from urident.errors import LogFormatError
 
 from .foreign import PRESETS, ColumnMap, ColumnMapError, column_names, parse_column_map
 from .recording import Recording
+from .rosbag import FORMAT_ROSBAG2, is_bag, load_bag
 from .schema import (
     ALL_FIELDS,
     FIELDS_BY_ATTR,
@@ -73,6 +74,8 @@ def load_log(
     column_map: str | ColumnMap | Mapping[str, Any] | None = None,
     format: str | None = None,  # noqa: A002 - mirrors the --format option
     known_robots: Collection[str] | None = None,
+    topic: str | None = None,
+    effort: str | None = None,
 ) -> Recording:
     """Load a log into a :class:`Recording`; any defect raises a one-line LogFormatError.
 
@@ -98,7 +101,22 @@ def load_log(
 
     ``known_robots``: allowed robot names (default: the robot files of urident.model; the check
     is skipped when none is installed).
+
+    A rosbag2 (a bag directory, or one ``.mcap`` / ``.db3`` file: :func:`is_bag`) is read by
+    :func:`urident.logs.rosbag.load_bag` with ``topic`` (JointState, default ``/joint_states``)
+    and ``effort`` (``current`` or ``torque``); ``rows`` then selects messages.
     """
+    if is_bag(path):
+        if column_map is not None or format not in (None, FORMAT_ROSBAG2):
+            raise LogFormatError(f"{path}: a rosbag2 bag takes no --format or --columns")
+        if isinstance(rows, str):
+            rows = parse_row_range(rows)
+        rows = None if rows is None else _check_range(rows, f"{path}: rows")
+        return load_bag(path, robot=robot, topic=topic, effort=effort, rows=rows,
+                        drop_bad=drop_bad,
+                        known_robots=known_robot_names() if known_robots is None else known_robots)
+    if topic is not None or effort is not None:
+        raise LogFormatError(f"{path}: --topic and --effort apply to rosbag2 bags only")
     return _Loader(path, robot, rows, drop_bad, column_map, format, known_robots).load()
 
 

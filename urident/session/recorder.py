@@ -51,7 +51,9 @@ class RtdeRecorder:
     """Start with :meth:`start` (returns once the first package is on disk), stop with
     :meth:`stop`, which finalises the log's sidecar with the session's status."""
 
-    def __init__(self, host: str, rate_hz: float, out: Path, metadata: dict[str, Any]):
+    def __init__(self, host: str, rate_hz: float, out: Path, metadata: dict[str, Any],
+                 fields: list[str] | None = None):
+        self.fields = fields  # log field names to ask for (default: urident.logs.LOG_FIELDS)
         self.host = host
         self.rate_hz = rate_hz
         self.out = Path(out)
@@ -64,7 +66,7 @@ class RtdeRecorder:
         parent, child = ctx.Pipe()
         self._process = ctx.Process(target=_record_main, name="urident-recorder", daemon=False,
                                     args=(self.host, self.rate_hz, str(self.out), self.metadata,
-                                          child, os.getpid()))
+                                          child, os.getpid(), self.fields))
         self._process.start()
         child.close()
         self._conn = parent
@@ -150,20 +152,23 @@ def _stop_orphaned_program(host: str) -> str:
     return unsure[-1] if unsure else "program stopped through the dashboard"
 
 
-def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, parent_pid: int) -> None:
+def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, parent_pid: int,
+                 names: list[str] | None = None) -> None:
     # Ctrl-C, SIGTERM and SIGHUP reach the whole process group (or a terminal's): the session
     # decides when the recording ends, and if the session itself dies the recorder notices.
     for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(signum, signal.SIG_IGN)
-    from urident.logs import LOG_FIELDS, LogWriter
+    from urident.logs import LOG_FIELDS, OPTIONAL_FIELDS, LogWriter
     from urident.logs.gaps import Gap, missing_periods
 
+    names = names or [f.name for f in LOG_FIELDS]
     try:
-        sock, recipe, reader = _connect(host, rate_hz, [f.name for f in LOG_FIELDS])
+        sock, recipe, reader = _connect(host, rate_hz, names)
     except (OSError, rp.ProtocolError, ConnectionLost) as exc:
         conn.send(("error", str(exc)))
         return
-    fields = [f for f in LOG_FIELDS if f.name in recipe.names]
+    known = {f.name: f for f in LOG_FIELDS + OPTIONAL_FIELDS}
+    fields = [known[n] for n in names if n in recipe.names]
     writer = LogWriter(out, fields=fields, metadata=metadata, overwrite=True)
     period = 1.0 / rate_hz
     n = missed = gap_count = 0

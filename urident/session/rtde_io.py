@@ -36,6 +36,25 @@ RECEIVE_VARIABLES = [
 ]
 
 
+# The joint torque output (UR's RTDE guide: actual_current_as_torque, PolyScope 5.23 / 10.10 on).
+TORQUE_FIELD = "actual_current_as_torque"
+TORQUE_FIELD_SINCE = {5: (5, 23), 10: (10, 10)}
+
+
+def log_field_names(version: tuple[int, ...]) -> list[str]:
+    """The log fields to record from a controller of ``version``: urident.logs.LOG_FIELDS, plus
+    the joint torques where that version publishes them."""
+    from urident.logs import LOG_FIELDS
+
+    names = [f.name for f in LOG_FIELDS]
+    since = TORQUE_FIELD_SINCE.get(version[0]) if version else None
+    if since is None and version and version[0] > 10:
+        since = TORQUE_FIELD_SINCE[10]
+    if since is not None and tuple(version) >= since:
+        names.insert(names.index("actual_current") + 1, TORQUE_FIELD)
+    return names
+
+
 @dataclass(frozen=True)
 class ControllerInfo:
     version: tuple[int, ...]      # PolyScope / controller software version

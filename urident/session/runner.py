@@ -31,7 +31,7 @@ from urident.session.config import ExperimentConfig
 from urident.session.monitors import RunMonitor, safety_problem
 from urident.session.preflight import (ApproachPlan, check_controller, check_robot_state,
                                        plan_approach)
-from urident.session.rtde_io import ControllerInfo, RobotLink
+from urident.session.rtde_io import ControllerInfo, RobotLink, log_field_names
 
 
 @dataclass(frozen=True)
@@ -312,7 +312,8 @@ def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion:
         "robot_model_reported": info.robot_model,
     }
     request.out.parent.mkdir(parents=True, exist_ok=True)
-    recorder = RtdeRecorder(request.host, info.rate_hz, request.out, metadata)
+    recorder = RtdeRecorder(request.host, info.rate_hz, request.out, metadata,
+                            fields=log_field_names(info.version))
     try:
         recorder.start()  # every controller sample from here on is in the log
     except BaseException as exc:

@@ -1,0 +1,520 @@
+"""rosbag2 logs (MCAP or SQLite storage) in and out: the only module that imports ``rosbags``.
+
+Input: ``sensor_msgs/msg/JointState`` on one topic (``/joint_states``, UR's
+joint_state_broadcaster), joints matched by name to the robot file's order (UR's
+``shoulder_pan_joint`` … ``wrist_3_joint``, with or without a ``tf_prefix``), time from
+``header.stamp`` (the bag's receive time when no message carries a stamp), ``effort`` read as the
+motor current [A] (UR's default) or as joint torque [N·m]. The driver's
+``…/safety_mode`` and ``…/robot_mode`` topics (io_and_status_controller), when recorded, mark
+stopped stretches (protective stop, e-stop, robot not running): their samples are excluded.
+
+Defects are issues as in CSV logs (``urident.logs.validate``), numbered by message (1-based, in
+bag order) and named by topic and stamp: one line by default, dropped and counted with
+``drop_bad``.
+
+Output: :func:`write_bag` writes a Recording as a rosbag2 (MCAP by default) with the same
+JointState layout, so a urident or simulated run can be replayed in ROS tools and read back.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any, Collection
+
+import numpy as np
+
+from urident.errors import LogFormatError
+
+from .recording import Recording
+from .schema import FIELDS_BY_ATTR, N_JOINTS
+from .validate import DropReport, Issue, check_jumps, check_time, check_values
+
+DEFAULT_TOPIC = "/joint_states"
+EFFORTS = ("current", "torque")
+FORMAT_ROSBAG2 = "rosbag2"
+STORAGES = ("mcap", "sqlite3")
+
+_JOINT_STATE = "sensor_msgs/msg/JointState"
+_SAFETY_MODE = "ur_dashboard_msgs/msg/SafetyMode"
+_ROBOT_MODE = "ur_dashboard_msgs/msg/RobotMode"
+_SUFFIXES = (".mcap", ".db3")
+_INSTALL_HINT = "reading and writing rosbag2 needs the rosbags package: pip install rosbags==0.11.9"
+_DROP_HINT = "pass --drop-bad to drop such messages"
+
+#: UR safety modes (ur_dashboard_msgs/SafetyMode) in which the arm is held or braking.
+SAFETY_STOPPED = {3: "protective stop", 4: "recovery", 5: "safeguard stop",
+                  6: "system emergency stop", 7: "robot emergency stop", 8: "violation",
+                  9: "fault", 12: "safeguard stop", 13: "three-position enabling stop"}
+ROBOT_MODE_RUNNING = 7
+#: RTDE safety_status_bits bit of a UR safety mode (modes 1..7 are bits 0..6; 8, 9 are bits 8, 9).
+_SAFETY_BIT = {1: 0, 2: 1, 3: 2, 4: 3, 5: 4, 6: 5, 7: 6, 8: 8, 9: 9}
+#: Two stretches of at least this many messages whose periods differ by more than
+#: RATE_CHANGE_RATIO are a rate change (a single long interval is a gap, left to the gap rule).
+RATE_WINDOW = 25
+RATE_CHANGE_RATIO = 1.5
+
+#: An interval this many median periods long is named as a gap (the consumers' gap rule decides).
+GAP_NOTE_FACTOR = 5.0
+
+# A tiny definition of UR's status messages, so tests and write_bag need no ROS installation.
+SAFETY_MODE_MSG = "uint8 mode\n"
+ROBOT_MODE_MSG = "int8 mode\n"
+
+
+def is_bag(path: str | Path) -> bool:
+    """True for a rosbag2 bag: a directory holding ``metadata.yaml``, or one ``.mcap`` or
+    ``.db3`` storage file."""
+    p = Path(path)
+    if p.is_dir():
+        return (p / "metadata.yaml").is_file()
+    return p.suffix.lower() in _SUFFIXES
+
+
+def ur_joint_names(robot_joint_names: Collection[str]) -> tuple[str, ...]:
+    """UR's ROS joint names for the robot file's joints: ``shoulder_pan`` → ``shoulder_pan_joint``."""
+    return tuple(n if n.endswith("_joint") else f"{n}_joint" for n in robot_joint_names)
+
+
+def _rosbags():
+    try:
+        import rosbags.rosbag2 as rosbag2
+        import rosbags.typesys as typesys
+    except ImportError:
+        raise LogFormatError(_INSTALL_HINT) from None
+    return rosbag2, typesys
+
+
+def _typestore(typesys):
+    store = typesys.get_typestore(typesys.Stores.ROS2_HUMBLE)
+    types = {}
+    types.update(typesys.get_types_from_msg(SAFETY_MODE_MSG, _SAFETY_MODE))
+    types.update(typesys.get_types_from_msg(ROBOT_MODE_MSG, _ROBOT_MODE))
+    store.register(types)
+    return store
+
+
+def _robot_joints(robot: str) -> tuple[str, ...]:
+    from urident.model import load_robot
+
+    return load_robot(robot).joint_names
+
+
+# ---------------------------------------------------------------------------------------- input
+@dataclass
+class _Messages:
+    """The joint-state messages of one topic, in bag order, mapped to the robot's joints."""
+
+    stamp: np.ndarray      # (M,) s, header.stamp (or receive time)
+    values: np.ndarray     # (M, 18) q, qd, effort in the robot's joint order (NaN: missing)
+    number: np.ndarray     # (M,) 1-based message number on the topic
+
+
+def load_bag(
+    path: str | Path,
+    robot: str | None = None,
+    topic: str | None = None,
+    effort: str | None = None,
+    rows: tuple[int, int] | None = None,
+    drop_bad: bool = False,
+    known_robots: Collection[str] | None = None,
+) -> Recording:
+    """Load the JointState messages of ``topic`` of a rosbag2 into a :class:`Recording`.
+
+    ``effort``: ``current`` (default, UR's driver: the effort field holds motor currents [A]) or
+    ``torque`` (joint torques [N·m]; ``Recording.tau`` holds them and ``current`` is τ divided by
+    the robot file's drive gains, ``metadata["current_from_torque"]``). ``rows=(first, last)``
+    keeps messages first..last of the topic (1-based, inclusive). Defects raise a one-line
+    LogFormatError naming the bag, topic, message number and stamp; ``drop_bad`` drops the
+    messages and counts them in ``metadata["dropped"]``.
+    """
+    path = Path(path)
+    topic = topic or DEFAULT_TOPIC
+    effort = effort or "current"
+    if effort not in EFFORTS:
+        raise LogFormatError(f"effort {effort!r}: expected one of {', '.join(EFFORTS)}")
+    if robot is None:
+        raise LogFormatError(f"{path}: robot unknown (a bag names none); pass --robot")
+    known = known_robots
+    if known and robot not in known:
+        raise LogFormatError(f"{path}: unknown robot {robot!r}; known: {', '.join(sorted(known))}")
+    return _BagLoader(path, robot, topic, effort, rows, drop_bad).load()
+
+
+class _BagLoader:
+    def __init__(self, path, robot, topic, effort, rows, drop_bad) -> None:
+        self.path, self.robot, self.topic, self.effort = path, robot, topic, effort
+        self.rows, self.drop_bad = rows, bool(drop_bad)
+        self.report = DropReport()
+        self.notes: list[str] = []
+        self.stamps: dict[int, float] = {}
+        self.duplicates = 0
+
+    def where(self, number: int) -> str:
+        stamp = self.stamps.get(int(number))
+        at = "" if stamp is None else f" (stamp {stamp:.6f} s)"
+        return f"{self.path}: {self.topic} message {int(number)}{at}"
+
+    def handle(self, issues: list[Issue]) -> None:
+        if not issues:
+            return
+        if not self.drop_bad:
+            first = min(issues, key=lambda i: i.line)
+            more = len(issues) - 1
+            col = f" {first.column}:" if first.column else ""
+            tail = f" (and {more} more bad message{'s' if more > 1 else ''})" if more else ""
+            raise LogFormatError(f"{self.where(first.line)}:{col} {first.detail}{tail}; {_DROP_HINT}")
+        self.report.add(issues)
+
+    def load(self) -> Recording:
+        rosbag2, typesys = _rosbags()
+        store = _typestore(typesys)
+        joints = ur_joint_names(_robot_joints(self.robot))
+        try:
+            reader = rosbag2.Reader(self.path)
+        except FileNotFoundError:
+            raise LogFormatError(f"{self.path}: no such bag") from None
+        except Exception as exc:  # noqa: BLE001 - rosbags raises its own and OS errors
+            raise LogFormatError(f"{self.path}: not a readable rosbag2: {exc}") from None
+        try:
+            with reader:
+                msgs, status = self._read(reader, store, joints)
+        except LogFormatError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - corrupt storage, unknown types
+            raise LogFormatError(f"{self.path}: cannot read the bag: {exc}") from None
+        return self._build(msgs, status, joints)
+
+    # ------------------------------------------------------------------ reading
+    def _read(self, reader, store, joints):
+        conns = [c for c in reader.connections if c.topic == self.topic]
+        if not conns:
+            found = sorted({c.topic for c in reader.connections if c.msgtype == _JOINT_STATE})
+            hint = f"; JointState topics: {', '.join(found)} (--topic)" if found else ""
+            raise LogFormatError(f"{self.path}: no topic {self.topic}{hint}")
+        bad_type = [c.msgtype for c in conns if c.msgtype != _JOINT_STATE]
+        if bad_type:
+            raise LogFormatError(
+                f"{self.path}: topic {self.topic} is {bad_type[0]}, not {_JOINT_STATE}")
+        conns = self._one_publisher(conns)
+        status_conns = [c for c in reader.connections
+                        if c.msgtype in (_SAFETY_MODE, _ROBOT_MODE)]
+        stamps, recv, numbers, values, issues = [], [], [], [], []
+        status: dict[str, list[tuple[int, int]]] = {_SAFETY_MODE: [], _ROBOT_MODE: []}
+        index: dict[str, int] | None = None
+        order_changes: list[int] = []
+        n = 0
+        for conn, t_recv, raw in reader.messages(connections=conns + status_conns):
+            if conn.msgtype != _JOINT_STATE:
+                msg = store.deserialize_cdr(raw, conn.msgtype)
+                status[conn.msgtype].append((int(t_recv), int(msg.mode)))
+                continue
+            n += 1
+            if self.rows is not None and not self.rows[0] <= n <= self.rows[1]:
+                continue
+            msg = store.deserialize_cdr(raw, conn.msgtype)
+            stamp_ns = int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
+            self.stamps[n] = stamp_ns / 1e9
+            names = list(msg.name)
+            if index is None or list(index) != names:
+                new = self._match(names, joints)
+                if isinstance(new, str):
+                    issues.append(Issue(n, None, "missing joint", new))
+                    continue
+                if index is not None and names and set(index) == set(names):
+                    order_changes.append(n)
+                index = {name: k for k, name in enumerate(names)}
+                cols = [index[j] for j in self._matched]
+            row = self._row(msg, cols, len(names), n, issues)
+            if row is None:
+                continue
+            stamps.append(stamp_ns)
+            recv.append(int(t_recv))
+            numbers.append(n)
+            values.append(row)
+        if self.rows is not None and self.rows[1] > n:
+            raise LogFormatError(
+                f"{self.path}: messages {self.rows[0]}-{self.rows[1]} asked, {self.topic} has {n}")
+        if n == 0:
+            raise LogFormatError(f"{self.path}: topic {self.topic} has no messages")
+        stamp = np.array(stamps, dtype=np.int64)
+        if stamp.size and not stamp.any():
+            stamp = np.array(recv, dtype=np.int64)
+            self.stamps.update(zip(numbers, stamp / 1e9))
+            self.notes.append(f"{self.path}: {self.topic} messages carry no header.stamp; "
+                              "time is the bag's receive time")
+            self.time_source = "bag receive time"
+        else:  # a lone zero stamp among others goes back in time: check_time names it
+            self.time_source = "header.stamp"
+        if order_changes:
+            self.notes.append(f"{self.where(order_changes[0])}: joint order changes "
+                              f"({len(order_changes)} time(s)); joints matched by name")
+        self.handle(issues)
+        msgs = _Messages(stamp / 1e9,  # correctly rounded: the CSV's decimal times exactly
+                         np.array(values, dtype=np.float64).reshape(-1, 3 * N_JOINTS),
+                         np.array(numbers, dtype=np.int64))
+        return msgs, status
+
+    def _one_publisher(self, conns):
+        """Several connections (or QoS profiles) on the topic are several publishers."""
+        profiles = sum(max(len(getattr(c.ext, "offered_qos_profiles", []) or []), 1) for c in conns)
+        if len(conns) == 1 and profiles <= 1:
+            return conns
+        what = f"{len(conns)} connections" if len(conns) > 1 else f"{profiles} publishers"
+        if not self.drop_bad:
+            raise LogFormatError(
+                f"{self.path}: topic {self.topic} has several publishers ({what}); record only the "
+                f"driver's joint_state_broadcaster, or {_DROP_HINT} of all but the busiest")
+        if len(conns) == 1:
+            self.notes.append(f"{self.path}: topic {self.topic} has {what}; their messages are "
+                              "checked one by one")
+            return conns
+        busiest = max(conns, key=lambda c: c.msgcount)
+        others = sum(c.msgcount for c in conns if c is not busiest)
+        self.notes.append(f"{self.path}: topic {self.topic} has {what}; kept the busiest "
+                          f"({busiest.msgcount} messages), dropped {others}")
+        self.dropped_publishers = others
+        return [busiest]
+
+    def _match(self, names: list[str], joints: tuple[str, ...]) -> str | list[str]:
+        """The message names of the robot's joints (one tf_prefix for all), or why not."""
+        if len(set(names)) != len(names):
+            return "a joint name appears twice"
+        prefixes = [n[: -len(joints[0])] for n in names if n.endswith(joints[0])]
+        full = [p for p in prefixes if all(p + j in names for j in joints)]
+        if len(full) != 1:
+            if len(full) > 1:
+                return f"joints of several tf_prefixes: {', '.join(repr(p) for p in full)}"
+            p = prefixes[0] if prefixes else ""
+            missing = next(j for j in joints if p + j not in names)
+            return f"joint {p + missing} missing (names: {', '.join(names) or 'none'})"
+        self._matched = [full[0] + j for j in joints]
+        return self._matched
+
+    def _row(self, msg, cols, n_names, number, issues) -> np.ndarray | None:
+        row = np.empty(3 * N_JOINTS)
+        for k, label in enumerate(("position", "velocity", "effort")):
+            arr = np.asarray(getattr(msg, label), dtype=np.float64)
+            if arr.shape != (n_names,):
+                what = "empty" if arr.size == 0 else f"{arr.size} values for {n_names} names"
+                issues.append(Issue(number, label, "malformed", f"{label} array is {what}"))
+                return None
+            row[k * N_JOINTS:(k + 1) * N_JOINTS] = arr[cols]
+        return row
+
+    # ------------------------------------------------------------------ checking
+    def _check(self, msgs: _Messages):
+        names = ([f"position[{j}]" for j in range(N_JOINTS)]
+                 + [f"velocity[{j}]" for j in range(N_JOINTS)]
+                 + [f"effort[{j}]" for j in range(N_JOINTS)])
+        eff = FIELDS_BY_ATTR["tau" if self.effort == "torque" else "current"]
+        bounds = np.concatenate([np.full(N_JOINTS, FIELDS_BY_ATTR["q"].bound),
+                                 np.full(N_JOINTS, FIELDS_BY_ATTR["qd"].bound),
+                                 np.full(N_JOINTS, eff.bound)])
+        units = ["rad"] * N_JOINTS + ["rad/s"] * N_JOINTS + [eff.unit] * N_JOINTS
+        t, v, num = msgs.stamp, msgs.values, msgs.number
+        ok, issues = check_values(v, num, names, bounds, units, np.zeros(v.shape[1], dtype=bool))
+        self.handle(issues)
+        t, v, num = t[ok], v[ok], num[ok]
+        keep, dup, issues = check_time(t, v, num, "header.stamp")
+        issues = [replace(i, detail=i.detail.replace("line ", "message ")) for i in issues]
+        self.handle(issues)
+        self.duplicates += int(dup.sum())
+        t, v, num = t[keep], v[keep], num[keep]
+        keep, issues = check_jumps(t, v[:, :N_JOINTS], num, names[:N_JOINTS], self.drop_bad,
+                                   f"{self.path}: {self.topic} message")
+        self.handle([replace(i, detail=i.detail.replace("line ", "message ")) for i in issues])
+        t, v, num = t[keep], v[keep], num[keep]
+        t, v, num = self._rate(t, v, num)
+        if t.size == 0:
+            d = self.report.as_dict()
+            raise LogFormatError(f"{self.path}: {self.topic}: no valid messages left "
+                                 f"({d['count']} dropped)")
+        return t, v, num
+
+    def _rate(self, t, v, num):
+        """A rate change (e.g. the driver restarted at another rate) is a defect: drop_bad
+        keeps the longest stretch at one rate."""
+        dt = np.diff(t)
+        if dt.size < 2 * RATE_WINDOW:
+            return t, v, num
+        local = np.median(np.lib.stride_tricks.sliding_window_view(dt, RATE_WINDOW), axis=1)
+        ref = local[0]
+        cuts = []
+        for k in range(1, local.size):
+            r = local[k] / ref
+            if r > RATE_CHANGE_RATIO or r < 1.0 / RATE_CHANGE_RATIO:
+                cuts.append(k + RATE_WINDOW // 2 + 1)
+                ref = local[k]
+        if not cuts:
+            return t, v, num
+        k = cuts[0]
+        before = 1.0 / np.median(dt[: k - 1]) if k > 1 else float("nan")
+        after = 1.0 / np.median(dt[k:]) if k < dt.size else float("nan")
+        detail = f"rate changes from {before:.4g} Hz to {after:.4g} Hz"
+        bounds = [0, *cuts, t.size]
+        runs = [(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
+        a, b = max(runs, key=lambda r: r[1] - r[0])
+        issues = [Issue(int(num[i]), None, "rate change", detail)
+                  for i in range(t.size) if not a <= i < b]
+        if not self.drop_bad:
+            raise LogFormatError(f"{self.where(num[k])}: {detail}; select one rate with --rows "
+                                 f"or {_DROP_HINT} outside the longest stretch")
+        self.report.add(issues)
+        return t[a:b], v[a:b], num[a:b]
+
+    def _stopped(self, t: np.ndarray, status) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """Mask of samples in a stop (driver status topics, zero-order hold on receive time)."""
+        stopped = np.zeros(t.size, dtype=bool)
+        bits = mode = None
+        t_ns = np.round(t * 1e9).astype(np.int64)
+        reasons = np.full(t.size, "", dtype=object)
+        for msgtype, samples in status.items():
+            if not samples:
+                continue
+            samples.sort()
+            at = np.array([s[0] for s in samples], dtype=np.int64)
+            val = np.array([s[1] for s in samples], dtype=np.int64)
+            k = np.searchsorted(at, t_ns, side="right") - 1
+            known = k >= 0
+            held = np.where(known, val[np.maximum(k, 0)], -1)
+            if msgtype == _SAFETY_MODE:
+                bad = known & np.isin(held, list(SAFETY_STOPPED))
+                bits = np.where(known, [1 << _SAFETY_BIT.get(int(m), 0) if m > 0 else 0
+                                        for m in held], 0).astype(np.int64)
+                for code, name in SAFETY_STOPPED.items():
+                    reasons[(held == code) & (reasons == "")] = name
+            else:
+                bad = known & (held != ROBOT_MODE_RUNNING)
+                mode = np.where(known, held, ROBOT_MODE_RUNNING)
+                reasons[bad & (reasons == "")] = "robot not running"
+            stopped |= bad
+        self.stop_reasons = reasons
+        return stopped, bits, mode
+
+    # ------------------------------------------------------------------ result
+    def _build(self, msgs: _Messages, status, joints) -> Recording:
+        t, v, num = self._check(msgs)
+        stopped, bits, mode = self._stopped(t, status)
+        excluded = []
+        if stopped.any():
+            edges = np.flatnonzero(np.diff(np.concatenate(([0], stopped.astype(int), [0]))))
+            for a, b in zip(edges[::2], edges[1::2]):
+                excluded.append({"start_s": float(t[a]), "end_s": float(t[b - 1]),
+                                 "messages": int(b - a), "reason": str(self.stop_reasons[a])})
+            first = excluded[0]
+            self.notes.append(
+                f"{self.where(num[edges[0]])}: {first['reason']}; excluded {int(stopped.sum())} "
+                f"message(s) in {len(excluded)} stop(s), not fitted")
+            keep = ~stopped
+            t, v, num = t[keep], v[keep], num[keep]
+            bits = None if bits is None else bits[keep]
+            mode = None if mode is None else mode[keep]
+            if t.size == 0:
+                raise LogFormatError(f"{self.path}: {self.topic}: every message is in a stop")
+        dt = np.diff(t)
+        if dt.size and np.any(dt > GAP_NOTE_FACTOR * np.median(dt)):
+            k = int(np.argmax(dt > GAP_NOTE_FACTOR * np.median(dt)))
+            n_gaps = int(np.count_nonzero(dt > GAP_NOTE_FACTOR * np.median(dt)))
+            self.notes.append(f"{self.where(num[k])}: {n_gaps} gap(s) in {self.topic}, the first "
+                              f"{dt[k]:.4g} s long (median period {np.median(dt):.4g} s)")
+        q, qd, eff = v[:, :N_JOINTS], v[:, N_JOINTS:2 * N_JOINTS], v[:, 2 * N_JOINTS:]
+        tau = None
+        current = eff
+        metadata: dict[str, Any] = {
+            "log_format": FORMAT_ROSBAG2, "status": "unknown", "topic": self.topic,
+            "joint_names": list(self._matched), "effort": self.effort,
+            "time_source": self.time_source, "rows": list(self.rows) if self.rows else None,
+            "first_line": int(num[0]), "last_line": int(num[-1]),
+            "duplicates_removed": self.duplicates, "excluded": excluded, "notes": self.notes,
+        }
+        if self.effort == "torque":
+            from urident.model import load_robot
+
+            tau = eff
+            current = eff / np.asarray(load_robot(self.robot).drive_gains, dtype=float)
+            metadata["current_from_torque"] = True
+        dropped = self.report.as_dict()
+        if self.report.issues:
+            first = min(self.report.issues, key=lambda i: i.line)
+            dropped["first"] = f"{self.where(first.line)}: {first.detail}"
+        extra = getattr(self, "dropped_publishers", 0)
+        if extra:
+            dropped["count"] += extra
+            dropped["reasons"]["other publisher"] = extra
+        metadata["dropped"] = dropped
+        rate = float(f"{1.0 / np.median(np.diff(t)):.6g}") if t.size > 1 else None
+        return Recording(t=t, q=q, qd=qd, current=current, tau=tau, source=self.path,
+                         robot=self.robot, rate_hz=rate, metadata=metadata,
+                         safety_status_bits=bits, robot_mode=mode)
+
+
+# --------------------------------------------------------------------------------------- output
+def write_bag(
+    recording: Recording,
+    out: str | Path,
+    joint_names: Collection[str],
+    topic: str = DEFAULT_TOPIC,
+    effort: str = "current",
+    storage: str = "mcap",
+    tf_prefix: str = "",
+) -> Path:
+    """Write ``recording`` as a rosbag2 directory ``out`` (must not exist): one JointState per
+    sample on ``topic`` (stamp = log time, names = ``tf_prefix`` + UR's joint names, effort =
+    current or, with ``effort="torque"``, ``recording.tau``), and the safety and robot modes the
+    log carries on ``/io_and_status_controller/…``. Returns ``out``."""
+    rosbag2, typesys = _rosbags()
+    store = _typestore(typesys)
+    out = Path(out)
+    if effort not in EFFORTS:
+        raise LogFormatError(f"effort {effort!r}: expected one of {', '.join(EFFORTS)}")
+    if storage not in STORAGES:
+        raise LogFormatError(f"storage {storage!r}: expected one of {', '.join(STORAGES)}")
+    eff = recording.current if effort == "current" else recording.tau
+    if eff is None:
+        raise LogFormatError(f"{recording.source}: the log carries no joint torque")
+    names = [f"{tf_prefix}{n}" for n in ur_joint_names(joint_names)]
+    plugin = rosbag2.StoragePlugin.MCAP if storage == "mcap" else rosbag2.StoragePlugin.SQLITE3
+    types = store.types
+    JointState = types[_JOINT_STATE]
+    Header, Time = types["std_msgs/msg/Header"], types["builtin_interfaces/msg/Time"]
+    t_ns = np.round(np.asarray(recording.t, dtype=np.float64) * 1e9).astype(np.int64)
+    if np.any(t_ns < 0):
+        raise LogFormatError(f"{recording.source}: negative timestamps cannot be ROS stamps")
+    with rosbag2.Writer(out, version=9, storage_plugin=plugin) as writer:
+        conn = writer.add_connection(topic, _JOINT_STATE, typestore=store)
+        for k, ns in enumerate(t_ns):
+            msg = JointState(
+                header=Header(stamp=Time(sec=int(ns // 1_000_000_000),
+                                         nanosec=int(ns % 1_000_000_000)), frame_id=""),
+                name=names, position=np.array(recording.q[k]),
+                velocity=np.array(recording.qd[k]), effort=np.array(eff[k]))
+            writer.write(conn, int(ns), store.serialize_cdr(msg, _JOINT_STATE))
+        bits = recording.safety_status_bits
+        if bits is not None:
+            _write_modes(writer, store, _SAFETY_MODE, "/io_and_status_controller/safety_mode",
+                         t_ns, [_safety_mode(int(b)) for b in bits])
+        if recording.robot_mode is not None:
+            _write_modes(writer, store, _ROBOT_MODE, "/io_and_status_controller/robot_mode",
+                         t_ns, [int(m) for m in recording.robot_mode])
+    return out
+
+
+def _safety_mode(bits: int) -> int:
+    """The UR safety mode of RTDE safety_status_bits (the highest set bit wins; 1 = normal)."""
+    mode = 1
+    for code, bit in _SAFETY_BIT.items():
+        if bits >> bit & 1:
+            mode = code
+    return mode
+
+
+def _write_modes(writer, store, msgtype, topic, t_ns, modes) -> None:
+    """Mode messages on change only (the driver publishes them on change too)."""
+    conn = writer.add_connection(topic, msgtype, typestore=store)
+    cls = store.types[msgtype]
+    last = None
+    for ns, m in zip(t_ns, modes):
+        if m != last:
+            writer.write(conn, int(ns), store.serialize_cdr(cls(mode=m), msgtype))
+            last = m
