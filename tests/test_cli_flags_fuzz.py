@@ -26,6 +26,7 @@ BASE = {
     "validate": ["x.csv", "--params", "p.yaml"],
     "gap": ["--robot", "ur5", "--ident", "a.csv", "--valid", "b.csv"],
     "view": ["x.csv"],
+    "export": ["p.yaml"],
     "simulate": ["--trajectory", "t.yaml", "--out", "x.csv"],
     "sim-controller": [],
 }
@@ -33,7 +34,7 @@ BASE = {
 # error naming the file (tests/test_inputs.py, tests/test_outputs.py)
 FREE_TEXT = {"--robot", "--out", "--out-root", "--trajectory", "--config", "--params", "--urdf",
              "--report", "--png", "--json-out", "--save", "--host", "--effects", "--ident",
-             "--valid", "--rerun"}
+             "--valid", "--rerun", "--mjcf", "--name"}
 # text no validator accepts
 ALWAYS_BAD = ["nan", "inf", "-inf", "NaN", "abc", "", " ", "1e999", "1,2,3,4,5", "0x1g", "1;2"]
 
