@@ -153,3 +153,23 @@ def write_mjcf(spec, standard: np.ndarray, path: str | Path, name: str | None = 
     path = Path(path)
     write_text_atomic(path, to_mjcf(spec, standard, name, notes, friction_eps), fsync=False, overwrite=overwrite)
     return path
+
+
+def downloaded_like_standard(spec) -> np.ndarray:
+    """The 78-vector of a model as people download it: the robot file's nominal masses and centres
+    of mass, solid-cylinder inertias from each link's first capsule, no armature, damping or
+    friction."""
+    from urident.model.parameters import body_params, standard_vector
+
+    bodies = []
+    for joint in spec.joints:
+        c = joint.collision[0]
+        axis = np.asarray(c.b, float) - np.asarray(c.a, float)
+        length = max(float(np.linalg.norm(axis)), 2 * c.radius)
+        z = axis / np.linalg.norm(axis) if np.linalg.norm(axis) > 0 else np.array([0, 0, 1.0])
+        m, r = joint.mass, c.radius
+        side, along = m * (3 * r * r + length * length) / 12, m * r * r / 2
+        inertia = side * np.eye(3) + (along - side) * np.outer(z, z)
+        bodies.append(body_params(m, joint.com, inertia))
+    zeros = np.zeros(len(spec.joints))
+    return standard_vector(bodies, zeros, zeros, zeros)

@@ -105,13 +105,13 @@ def _check_chain(path, spec, names, anchors, axes) -> None:
         d = np.linalg.norm(anchors[:, i] - ref_pos[:, i], axis=1)
         k = int(np.argmax(d))
         if d[k] > POSITION_TOL_M:
-            raise SimModelError(f"{path}: joint {name!r} is {1000 * d[k]:.1f} mm from {spec.name}'s joint "
+            raise SimModelError(f"{path}: <joint name={name!r}>: its anchor is {1000 * d[k]:.1f} mm from {spec.name}'s joint "
                                 f"{i + 1} ({spec.joints[i].name}) at q = {np.round(q[k], 3).tolist()}: not "
                                 f"the same kinematic chain (tolerance 1 mm)")
         ang = np.arccos(np.clip(np.sum(axes[:, i] * ref_axes[:, i], axis=1), -1, 1))
         k = int(np.argmax(ang))
         if ang[k] > AXIS_TOL_RAD:
-            raise SimModelError(f"{path}: joint {name!r}'s axis is {ang[k]:.3f} rad from {spec.name}'s joint "
+            raise SimModelError(f"{path}: <joint name={name!r}>: its axis is {ang[k]:.3f} rad from {spec.name}'s joint "
                                 f"{i + 1} ({spec.joints[i].name}) at q = {np.round(q[k], 3).tolist()}: not "
                                 f"the same kinematic chain (tolerance 0.01 rad)")
 
