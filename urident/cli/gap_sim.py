@@ -46,13 +46,19 @@ def run_sim(args: argparse.Namespace) -> int:
     print(format_report(result))
     print("")
     print(f"Simulator model {args.sim} ({fmt.upper()}): which findings the format can express")
+    final_fit = {(c.effect, c.joint): c.magnitude(beta, spec) for c, beta in result.fit.coefficients().items()}
     for f in result.findings:
         yes = expressible(fmt, f.effect)
+        value = final_fit.get((f.effect, None if f.effect == "payload_error" else f.joint - 1), {})
+        shown = ", ".join(f"{k} = {v:.4g}" for k, v in value.items() if isinstance(v, float))
         print(f"  {f.effect:22s} joint {f.joint}  {'expressible' if yes else 'NOT expressible':16s} "
-              f"{f.shrink_pct:5.1f} % shrink")
+              f"{f.shrink_pct:5.1f} % shrink  {shown}")
     doc = result.as_dict()
+    final = final_fit
     for fd, f in zip(doc.get("findings", []), result.findings):
         fd["expressible"] = expressible(fmt, f.effect)
+        # the value to put into the model: all chosen corrections fitted together
+        fd["final_magnitude"] = final.get((f.effect, None if f.effect == "payload_error" else f.joint - 1))
     doc["baseline"]["sim_model"] = {"path": str(args.sim), "format": fmt}
     r0 = result.valid.residual
     chosen, fit = expressible_fit(result)
