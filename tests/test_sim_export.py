@@ -153,3 +153,42 @@ def test_only_urident_sim_mujoco_model_imports_mujoco():
             if any(n == "mujoco" or n.startswith("mujoco.") for n in names):
                 importers.append(path.relative_to(ROOT).as_posix())
     assert set(importers) == {"urident/sim/mujoco_model.py"}
+
+
+def test_mjcf_of_the_real_ur10e_estimate_reproduces_its_prediction_in_mujoco(tmp_path):
+    from shared_data import UR10E_DATA
+
+    ident, valid = UR10E_DATA / "ur-20_02_10-30sec_12harm.csv", UR10E_DATA / "ur-20_01_17-ptp_10_points.csv"
+    if not (ident.exists() and valid.exists()):
+        pytest.skip("UR10e data absent")
+    from urident.ident import load_params, predict_recordings
+    from urident.logs import load_log
+    from urident.sim.mujoco_model import inverse_dynamics, load_model
+
+    params = tmp_path / "ur10e.yaml"
+    assert main(["identify", str(ident), "--robot", "ur10e", "--format", "dynamic_calibration", "--rows",
+                 "635-3510", "--method", "consistent", "--out", str(params)]) == 0
+    xml = tmp_path / "ur10e.xml"
+    assert main(["export", str(params), "--mjcf", str(xml)]) == 0
+    model = load_model(xml)       # a principal moment at the SDP's boundary is raised, not refused
+    p = load_params(params)
+    pred = predict_recordings(p, [load_log(valid, robot="ur10e", rows=(700, 4200), format="dynamic_calibration")])
+    d = pred.data
+    diff = np.sqrt(np.mean((inverse_dynamics(model, d.q, d.qd, d.qdd) - pred.tau_predicted) ** 2, axis=0))
+    assert np.all(diff <= 0.02 * np.sqrt(np.mean(d.tau ** 2, axis=0)))
+
+
+def test_mujoco_inertia_raises_only_what_mujoco_refuses():
+    from urident.sim.mjcf import MIN_PRINCIPAL_INERTIA, mujoco_inertia
+
+    good = np.diag([0.1, 0.2, 0.25])
+    same, changed = mujoco_inertia(good)
+    assert not changed and same is good
+    flat = np.diag([0.1, 0.1, 0.0])
+    fixed, changed = mujoco_inertia(flat)
+    eig = np.linalg.eigvalsh(fixed)
+    assert changed and eig.min() >= MIN_PRINCIPAL_INERTIA and np.abs(fixed - flat).max() < 1e-8
+    rod = np.diag([0.0, 0.1, 0.1 + 1e-7])       # triangle inequality broken by 1e-7
+    fixed, _ = mujoco_inertia(rod)
+    a, b, c = np.sort(np.linalg.eigvalsh(fixed))
+    assert a + b >= c and np.abs(fixed - rod).max() < 1e-6

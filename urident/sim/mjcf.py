@@ -66,6 +66,25 @@ def friction_softness(coulomb: float, inverse_weight: float, friction_eps: float
     return f"-1 {-b:.12g}", f"{d:g} {d:g} 0.001 0.5 2"
 
 
+#: MuJoCo refuses an inertia with a zero principal moment, which a physically consistent estimate
+#: on the boundary of its constraint can have: principal moments are raised to at least this [kg m²]
+MIN_PRINCIPAL_INERTIA = 1e-9
+
+
+def mujoco_inertia(inertia: np.ndarray) -> tuple[np.ndarray, bool]:
+    """(inertia about the CoM MuJoCo accepts, whether it was changed): principal moments raised to
+    :data:`MIN_PRINCIPAL_INERTIA` and to the triangle inequality a + b ≥ c."""
+    eig, vec = np.linalg.eigh((inertia + inertia.T) / 2)
+    fixed = np.maximum(eig, MIN_PRINCIPAL_INERTIA)
+    for k in range(3):
+        others = [fixed[i] for i in range(3) if i != k]
+        short = fixed[k] - sum(others)
+        if short > 0:
+            fixed[[i for i in range(3) if i != k]] += short / 2 + MIN_PRINCIPAL_INERTIA
+    changed = bool(np.any(fixed != eig))
+    return (vec * fixed) @ vec.T if changed else inertia, changed
+
+
 def _comment(text: str) -> str:
     return "<!-- " + text.replace("--", "- -") + " -->"
 
@@ -87,6 +106,14 @@ def to_mjcf(spec, standard: np.ndarray, name: str | None = None, notes=(),
     name = name or f"{spec.name}_identified"
     out = ['<?xml version="1.0"?>', f"<mujoco model={quoteattr(name)}>"]
     out += ["  " + _comment(line) for line in notes]
+    inertials = []
+    for i, joint in enumerate(spec.joints):
+        m, com, ic = link_inertial(p[body_slice(i)])
+        ic, changed = mujoco_inertia(ic)
+        inertials.append((m, com, ic))
+        if changed:
+            out.append("  " + _comment(f"{joint.name}_link: principal moments raised to >= "
+                                       f"{MIN_PRINCIPAL_INERTIA:g} kg m^2 (MuJoCo refuses a zero one)"))
     out += ['  <compiler angle="radian" autolimits="true" inertiafromgeom="false"/>',
             f'  <option gravity="{_fmt(spec.gravity)}"/>',
             "  <default>",
@@ -96,7 +123,7 @@ def to_mjcf(spec, standard: np.ndarray, name: str | None = None, notes=(),
     out += _capsules(spec.base_collision, "    ", "collision")
     indent = "    "
     for i, joint in enumerate(spec.joints):
-        m, com, ic = link_inertial(p[body_slice(i)])
+        m, com, ic = inertials[i]
         fc = p[COULOMB][i] * FRICTION_PIECES[0][0]
         soft = ""
         if fc > 0:
