@@ -107,7 +107,7 @@ def test_write_sim_changes_exactly_what_it_says(ur5_models, tmp_path):
     changes = {"armature": np.array([0.3, 0, 0, 0, 0, 0.01]), "damping": np.array([0, 4.0, 0, 0, 0, 0]),
                "frictionloss": np.array([0, 0, 5.0, 0, 0, 0]), "mass": np.array([0, 0, 0.5, 0, 0, 0]),
                "first_moment": np.zeros((6, 3)), "payload": (1.5, np.zeros(3))}
-    changes["first_moment"][2] = [0.01, 0.02, 0.1]
+    changes["first_moment"][2] = [0.002, 0.001, 0.02]
     out = write_corrected(sim, spec, changes, tmp_path / "corrected.xml", notes=["a note"])
     new = load_sim_model(out, spec)
     assert "a note" in out.read_text()
@@ -120,11 +120,16 @@ def test_write_sim_changes_exactly_what_it_says(ur5_models, tmp_path):
     zero = np.zeros_like(q)
     blocks = regressor_blocks(spec, q, zero, zero)
     delta = np.zeros(blocks.shape[2])
-    delta[20:24] = [0.5, 0.01, 0.02, 0.1]
+    delta[20:24] = [0.5, 0.002, 0.001, 0.02]
     from urident.ident.features import payload_columns
 
     expected = blocks @ delta + 1.5 * payload_columns(blocks, spec.tool_xyz)[:, :, 0]
     np.testing.assert_allclose(new.predict(q, zero, zero) - sim.predict(q, zero, zero), expected, atol=1e-9)
+    # in motion too: the correction keeps the link's inertia about its joint frame, as its columns do
+    qd, qdd = rng.normal(0, 1, q.shape), rng.normal(0, 3, q.shape)
+    blocks = regressor_blocks(spec, q, qd, qdd)
+    expected = blocks @ delta + 1.5 * payload_columns(blocks, spec.tool_xyz)[:, :, 0] + changes["armature"] * qdd
+    np.testing.assert_allclose(new.rigid(q, qd, qdd) - sim.rigid(q, qd, qdd), expected, atol=1e-4)
 
 
 def test_gap_sim_names_the_missing_drive_terms_and_mujoco_measures_the_written_model(ur5_models, tmp_path, capsys):

@@ -19,7 +19,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "and capsule collision geometry. The identified terms the format cannot express are "
                     "listed in the file's header and here, with their share of the torque of the "
                     "--valid logs.")
-    p.add_argument("params", metavar="PARAMS.yaml", help="parameters file (urident identify --method consistent or all)")
+    p.add_argument("params", metavar="PARAMS.yaml", nargs="?", default=None,
+                   help="parameters file (urident identify --method consistent or all)")
+    p.add_argument("--nominal", action="store_true",
+                   help="instead of PARAMS.yaml: the robot file's nominal values (needs --robot)")
     p.add_argument("--mjcf", metavar="OUT.xml", default=None, help="write an MJCF (MuJoCo) model")
     p.add_argument("--urdf", metavar="OUT.urdf", default=None, help="write a URDF model")
     p.add_argument("--valid", nargs="+", metavar="LOG", default=None,
@@ -43,8 +46,12 @@ def run(args: argparse.Namespace) -> int:
 
     if not args.mjcf and not args.urdf:
         raise ConfigError("export: give --mjcf OUT.xml and/or --urdf OUT.urdf")
+    if bool(args.params) == bool(args.nominal):
+        raise ConfigError("export: give PARAMS.yaml or --nominal --robot R")
     options.output_path("--mjcf", args.mjcf, args.overwrite)
     options.output_path("--urdf", args.urdf, args.overwrite)
+    if args.nominal:
+        return _nominal(args)
     params = load_params(args.params)
     spec = load_robot(args.robot or params.robot)
     if params.robot != spec.name:
@@ -80,4 +87,29 @@ def run(args: argparse.Namespace) -> int:
             print(f"  {t.line()}")
         if not terms:
             print("  every identified term is expressed")
+    return 0
+
+
+def _nominal(args: argparse.Namespace) -> int:
+    from urident.errors import ConfigError
+    from urident.ident.urdf import write_urdf
+    from urident.model import load_robot
+    from urident.sim.mjcf import write_mjcf
+
+    if not args.robot:
+        raise ConfigError("--nominal needs --robot R")
+    if args.valid:
+        raise ConfigError("--valid: shares are of identified terms; --nominal has none")
+    spec = load_robot(args.robot)
+    notes = [f"the robot file {spec.source.name}'s nominal values, exported by urident"]
+    note = spec.nominal_note()
+    if note:
+        notes.append(note)
+    name = args.name or f"{spec.name}_nominal"
+    if args.mjcf:
+        write_mjcf(spec, spec.nominal_params, args.mjcf, name=name, notes=notes, overwrite=args.overwrite)
+        print(f"wrote {args.mjcf} (MJCF)")
+    if args.urdf:
+        write_urdf(spec, spec.nominal_params, args.urdf, name=name, notes=notes, overwrite=args.overwrite)
+        print(f"wrote {args.urdf} (URDF)")
     return 0

@@ -5,7 +5,7 @@ and Coulomb friction become the model's value plus the correction (MJCF: ``frict
 two pieces of :mod:`urident.sim.mjcf`, joint and fixed tendon ``<joint>_friction``, so MuJoCo's
 force follows tanh(q̇/ε); URDF: ``<dynamics damping friction>``). A link's mass and first-moment
 correction (about the robot's joint frame K_i, turned into the body's frame) moves its inertial's
-mass and centre of mass and keeps its rotational inertia about the centre of mass. A payload is a
+mass and centre of mass and keeps its inertia about K_i's origin, as the correction's columns do. A payload is a
 point mass body ``payload`` at the tool point (MJCF). URDF: link and payload corrections are not
 written (listed by the caller).
 """
@@ -20,18 +20,28 @@ import numpy as np
 from urident.errors import ConfigError
 
 
+def _parse(path) -> ET.ElementTree:
+    """The file with its comments kept."""
+    return ET.parse(path, parser=ET.XMLParser(target=ET.TreeBuilder(insert_comments=True)))
+
+
 def _fmt(values) -> str:
     return " ".join(f"{float(v):.12g}" for v in np.atleast_1d(values))
 
 
+def _shift(x: np.ndarray) -> np.ndarray:
+    """Parallel-axis term |x|²·1 − x·xᵀ (per kg)."""
+    return x @ x * np.eye(3) - np.outer(x, x)
+
+
 def _mjcf_text(sim, spec, changes: dict, notes) -> str:
     from urident.model.kinematics import frame_poses
-    from urident.sim.mjcf import FRICTION_PIECES, friction_softness, quaternion
+    from urident.sim.mjcf import FRICTION_PIECES, friction_softness, mujoco_inertia, quaternion
     from urident.sim.mujoco_model import import_mujoco
 
     mj = import_mujoco()
     model = sim.handle
-    tree = ET.parse(sim.path)
+    tree = _parse(sim.path)
     root = tree.getroot()
     parents = {child: parent for parent in root.iter() for child in parent}
     data = mj.MjData(model)
@@ -77,11 +87,18 @@ def _mjcf_text(sim, spec, changes: dict, notes) -> str:
             mass = m + dm
             if not mass > 0:
                 raise ConfigError(f"{sim.path}: correcting body {body.get('name')!r} leaves mass {mass:g} kg")
-            ipos = rb.T @ (pos[0, i] + first / mass - xb)
+            new_com = pos[0, i] + first / mass
+            ipos = rb.T @ (new_com - xb)
+            # the correction keeps the inertia about K_i's origin (its columns are m and m·ρ only)
+            ri = np.array(data.ximat[b]).reshape(3, 3)
+            i_com = ri @ np.diag(model.body_inertia[b]) @ ri.T
+            about_k = i_com + m * _shift(com - pos[0, i])
+            i_new, _ = mujoco_inertia(about_k - mass * _shift(new_com - pos[0, i]))
+            i_body = rb.T @ i_new @ rb
             for old_i in body.findall("inertial"):
                 body.remove(old_i)
-            inertial = ET.Element("inertial", pos=_fmt(ipos), quat=_fmt(model.body_iquat[b]),
-                                  mass=f"{mass:.12g}", diaginertia=_fmt(model.body_inertia[b]))
+            inertial = ET.Element("inertial", pos=_fmt(ipos), mass=f"{mass:.12g}", fullinertia=_fmt(
+                [i_body[0, 0], i_body[1, 1], i_body[2, 2], i_body[0, 1], i_body[0, 2], i_body[1, 2]]))
             body.insert(0, inertial)
     payload = changes.get("payload")
     if payload is not None and payload[0] > 0:
@@ -99,7 +116,7 @@ def _mjcf_text(sim, spec, changes: dict, notes) -> str:
 
 
 def _urdf_text(sim, changes: dict, notes) -> str:
-    tree = ET.parse(sim.path)
+    tree = _parse(sim.path)
     root = tree.getroot()
     for i, name in enumerate(sim.joint_names):
         joint = root.find(f"joint[@name='{name}']")
