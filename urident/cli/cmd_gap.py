@@ -89,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
     if args.sim or args.write_sim:
         from urident.cli.gap_sim import run_sim
 
-        return run_sim(args)
+        return run_sim(args, _load_all, _json_default)
     if not args.ident:
         from urident.errors import ConfigError
 
@@ -116,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
     if args.json_out:
         from urident.fileio import write_text_atomic
 
-        text = json.dumps(result.as_dict(), indent=1, allow_nan=False, default=json_default)
+        text = json.dumps(result.as_dict(), indent=1, allow_nan=False, default=_json_default)
         write_text_atomic(args.json_out, text, fsync=False, overwrite=args.overwrite)
         print(f"\nreport written to {args.json_out}")
     rec = options.open_recording_from_args(args, "urident_gap")
@@ -126,7 +126,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def json_default(x):
+def _json_default(x):
     import numpy as np
 
     if isinstance(x, np.generic):

@@ -12,10 +12,11 @@ from urident.cli import options
 SIM_MAX_EFFECTS = 12
 
 
-def run_sim(args: argparse.Namespace) -> int:
+def run_sim(args: argparse.Namespace, load_all, json_default) -> int:
+    """``load_all(paths, args, rows, robot)`` and ``json_default``: cmd_gap's log loader and JSON
+    encoder hook."""
     import numpy as np
 
-    from urident.cli.cmd_gap import _load_all, json_default
     from urident.errors import ConfigError
     from urident.gap import GapConfig, format_report
     from urident.gap.candidates import EFFECTS
@@ -39,9 +40,9 @@ def run_sim(args: argparse.Namespace) -> int:
     config = GapConfig(effects=args.effects or EFFECTS, **floor, cv_min_noise_ratio=args.cv_min_noise_ratio,
                        max_effects=args.max_effects or SIM_MAX_EFFECTS, seed=args.seed)
     drive_gains = None if args.drive_gains is None else np.array(args.drive_gains)
-    valid = _load_all(args.valid, args, args.valid_rows, spec.name)
+    valid = load_all(args.valid, args, args.valid_rows, spec.name)
     if args.ident:
-        print(f"note: --ident logs are not used with --sim (the simulator model is the baseline, not refitted)")
+        print("note: --ident logs are not used with --sim (the simulator model is the baseline, not refitted)")
     result = diagnose_sim(valid, spec, sim, drive_gains=drive_gains, config=config)
     print(format_report(result))
     print("")
