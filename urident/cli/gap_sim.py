@@ -65,10 +65,20 @@ def run_sim(args: argparse.Namespace, load_all, json_default) -> int:
     chosen, fit = expressible_fit(result)
     written = [c for c in chosen if fmt == "mjcf" or c.effect in ("damping", "frictionloss")]
     if len(written) != len(chosen):
-        fit = result.correction(written)
         print("  URDF: link mass/CoM and payload corrections are not written by --write-sim (only <dynamics>)")
+    if fmt == "mjcf":
+        from urident.sim.correct import unrealisable_links
+
+        bad = set(unrealisable_links(sim, spec, corrections(result)))
+        for c in written:
+            if c.effect == "rigid_body" and c.joint in bad:
+                print(f"  {c.name}: not a real mass distribution (the inertia about the new centre of mass "
+                      "would not be positive): not written")
+        written = [c for c in written if not (c.effect == "rigid_body" and c.joint in bad)]
+    if len(written) != len(chosen):
+        fit = result.correction(written)
     predicted = r0 - fit.change(result.valid) if written else r0
-    inexpressible = [c for c in result.chosen() if c not in written]
+    inexpressible = [c for c in result.chosen() if not expressible(fmt, c.effect)]
     shrink = lambda before, after: 100.0 * (1 - after / np.where(before > 0, before, np.inf))  # noqa: E731
     print("  shrink of the validation RMS per joint [%]:")
     print("    expressible findings, predicted   " + " ".join(f"{v:6.1f}" for v in shrink(rms(r0), rms(predicted))))
@@ -79,9 +89,7 @@ def run_sim(args: argparse.Namespace, load_all, json_default) -> int:
     if args.write_sim:
         from urident.sim.correct import write_corrected
 
-        changes = corrections(result)
-        if fmt == "urdf":
-            changes = dict(changes, mass=np.zeros(6), first_moment=np.zeros((6, 3)), payload=None)
+        changes = corrections(result, written)
         notes = [f"corrected by urident gap from {args.sim} on {', '.join(map(str, args.valid))}"]
         notes += [f"not expressible here: {c.name}" for c in inexpressible]
         path = write_corrected(sim, spec, changes, args.write_sim, notes=notes, overwrite=args.overwrite)

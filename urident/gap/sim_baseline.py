@@ -146,14 +146,16 @@ def diagnose_sim(valid_recordings: Sequence, spec, sim, *, drive_gains=None,
                      rms(current.residual), findings, current, steps, confounds, where, config, scorer)
 
 
-def corrections(result) -> dict:
-    """The expressible findings of a :func:`diagnose_sim` result as model changes:
+def corrections(result, candidates=None) -> dict:
+    """The expressible findings of a :func:`diagnose_sim` result (or only ``candidates`` of them,
+    refitted together) as model changes:
     ``{"armature": (6,), "damping": (6,), "frictionloss": (6,), "mass": (6,), "first_moment": (6, 3),
     "payload": (mass, first moment (3,)) or None}`` (additions to the model's values)."""
     fmt = result.model.fmt
     out = {"armature": np.zeros(6), "damping": np.zeros(6), "frictionloss": np.zeros(6),
            "mass": np.zeros(6), "first_moment": np.zeros((6, 3)), "payload": None}
-    for c, beta in result.fit.coefficients().items():
+    fit = result.fit if candidates is None else result.correction(list(candidates))
+    for c, beta in fit.coefficients().items():
         if not expressible(fmt, c.effect):
             continue
         if c.effect in ("armature", "damping", "frictionloss"):

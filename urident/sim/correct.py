@@ -93,7 +93,11 @@ def _mjcf_text(sim, spec, changes: dict, notes) -> str:
             ri = np.array(data.ximat[b]).reshape(3, 3)
             i_com = ri @ np.diag(model.body_inertia[b]) @ ri.T
             about_k = i_com + m * _shift(com - pos[0, i])
-            i_new, _ = mujoco_inertia(about_k - mass * _shift(new_com - pos[0, i]))
+            i_new = about_k - mass * _shift(new_com - pos[0, i])
+            if np.linalg.eigvalsh(i_new).min() < 0:
+                raise ConfigError(f"{sim.path}: the mass/CoM correction of body {body.get('name')!r} is not a "
+                                  "real mass distribution (drop it: unrealisable_links)")
+            i_new, _ = mujoco_inertia(i_new)
             i_body = rb.T @ i_new @ rb
             for old_i in body.findall("inertial"):
                 body.remove(old_i)
@@ -129,6 +133,42 @@ def _urdf_text(sim, changes: dict, notes) -> str:
         root.insert(0, ET.Comment(" " + line.replace("--", "- -") + " "))
     ET.indent(tree)
     return '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
+def unrealisable_links(sim, spec, changes: dict) -> list[int]:
+    """0-based links whose mass/CoM correction, with the inertia about the joint frame kept (as
+    the correction's columns assume), leaves no real mass distribution (inertia about the new CoM
+    not positive semi-definite): such a correction cannot be written."""
+    from urident.model.kinematics import frame_poses
+
+    if sim.fmt != "mjcf":
+        return []
+    from urident.sim.mujoco_model import import_mujoco
+
+    mj = import_mujoco()
+    model = sim.handle
+    data = mj.MjData(model)
+    mj.mj_kinematics(model, data)
+    _, pos = frame_poses(spec, np.zeros((1, 6)))
+    rot, _ = frame_poses(spec, np.zeros((1, 6)))
+    out = []
+    for i in range(len(sim.joint_names)):
+        dm, dh = changes["mass"][i], changes["first_moment"][i]
+        if dm == 0 and not np.any(dh != 0):
+            continue
+        b = int(model.jnt_bodyid[i])
+        m = float(model.body_mass[b])
+        com = np.array(data.xipos[b])
+        ri = np.array(data.ximat[b]).reshape(3, 3)
+        about_k = ri @ np.diag(model.body_inertia[b]) @ ri.T + m * _shift(com - pos[0, i])
+        mass = m + dm
+        if not mass > 0:
+            out.append(i)
+            continue
+        new_com = pos[0, i] + (m * (com - pos[0, i]) + rot[0, i] @ dh) / mass
+        if np.linalg.eigvalsh(about_k - mass * _shift(new_com - pos[0, i])).min() < 0:
+            out.append(i)
+    return out
 
 
 def write_corrected(sim, spec, changes: dict, path: str | Path, *, notes=(), overwrite: bool = False) -> Path:
