@@ -192,3 +192,19 @@ def test_mujoco_inertia_raises_only_what_mujoco_refuses():
     fixed, _ = mujoco_inertia(rod)
     a, b, c = np.sort(np.linalg.eigvalsh(fixed))
     assert a + b >= c and np.abs(fixed - rod).max() < 1e-6
+
+
+def test_export_nominal_writes_the_robot_files_values(tmp_path, capsys):
+    from urident.model import load_robot
+    from urident.sim.mujoco_model import load_model
+
+    xml = tmp_path / "n.xml"
+    assert main(["export", "--nominal", "--robot", "ur10e", "--mjcf", str(xml)]) == 0
+    spec = load_robot("ur10e")
+    model = load_model(xml)
+    np.testing.assert_allclose(model.dof_armature, spec.arrays["rotor_inertia"])
+    np.testing.assert_allclose(model.dof_damping, spec.arrays["viscous_friction"])
+    np.testing.assert_allclose(model.body_mass[1:7], [j.mass for j in spec.joints])
+    assert "nominal values" in xml.read_text().split("<compiler")[0]
+    assert main(["export", "--nominal", "--mjcf", str(tmp_path / "m.xml")]) == 2
+    assert "--nominal needs --robot" in capsys.readouterr().err
