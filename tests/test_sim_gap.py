@@ -170,3 +170,34 @@ def test_gap_sim_names_the_missing_drive_terms_and_mujoco_measures_the_written_m
     assert np.all(measured[big] < before[big])
     np.testing.assert_allclose(100 * (1 - measured[big] / before[big]), 100 * (1 - predicted[big] / before[big]),
                                atol=3.0)
+
+
+def test_downloaded_like_ur5e_mjcf_against_a_realistic_run(tmp_path):
+    """The acceptance scenario of benchmarks/sim_gap.py: nominal masses, cylinder inertias, no drive
+    terms; a validation run of the simulated controller with the realistic effects (offline)."""
+    from urident.model import load_robot
+    from urident.sim.mjcf import downloaded_like_standard, write_mjcf
+
+    spec = load_robot("ur5e")
+    model = write_mjcf(spec, downloaded_like_standard(spec), tmp_path / "downloaded.xml")
+    log = tmp_path / "valid.csv"
+    assert main(["simulate", "--trajectory", str(ROOT / "experiments" / "ur5e_valid.yaml"), "--out", str(log),
+                 "--effects", "realistic"]) == 0
+    js = tmp_path / "gap.json"
+    assert main(["gap", "--robot", "ur5e", "--sim", str(model), "--valid", str(log), "--write-sim",
+                 str(tmp_path / "fixed.xml"), "--json-out", str(js)]) == 0
+    doc = json.loads(js.read_text())
+    assert doc["findings"][0]["effect"] == "frictionloss"
+    found = {(f["effect"], f["joint"]): f["final_magnitude"] for f in doc["findings"]}
+    for j in (1, 2, 3):     # the big joints: the robot file's drive values are the simulated truth
+        assert abs(found[("frictionloss", j)]["frictionloss_nm"] / spec.arrays["coulomb_friction"][j - 1] - 1) <= 0.1
+    for j in (1, 2):
+        assert abs(found[("damping", j)]["damping_nm_s_per_rad"] / spec.arrays["viscous_friction"][j - 1] - 1) <= 0.1
+    before = np.array(doc["baseline"]["rms_nm"])
+    after = np.array(doc["sim_corrected"]["rms_nm"])
+    predicted = np.array(doc["sim_predicted"]["rms_nm"])
+    noise = 0.02 * spec.drive_gains * 3       # 3 sigma of the simulated 0.02 A current noise [N·m]
+    big = before > noise
+    assert big.all()
+    assert np.all(after[big] <= 0.5 * before[big])
+    np.testing.assert_allclose(100 * (1 - after / before), 100 * (1 - predicted / before), atol=3.0)
