@@ -27,6 +27,7 @@ BASE = {
     "gap": ["--robot", "ur5", "--ident", "a.csv", "--valid", "b.csv"],
     "view": ["x.csv"],
     "convert": ["x.csv", "--bag", "out"],
+    "export": ["p.yaml"],
     "simulate": ["--trajectory", "t.yaml", "--out", "x.csv"],
     "sim-controller": [],
 }
@@ -34,7 +35,7 @@ BASE = {
 # error naming the file (tests/test_inputs.py, tests/test_outputs.py)
 FREE_TEXT = {"--robot", "--out", "--out-root", "--trajectory", "--config", "--params", "--urdf",
              "--report", "--png", "--json-out", "--save", "--host", "--effects", "--ident",
-             "--valid", "--rerun", "--bag"}
+             "--valid", "--rerun", "--bag", "--mjcf", "--name", "--sim", "--write-sim"}
 # text no validator accepts
 ALWAYS_BAD = ["nan", "inf", "-inf", "NaN", "abc", "", " ", "1e999", "1,2,3,4,5", "0x1g", "1;2"]
 

@@ -25,11 +25,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "controller's target moment, its agreement with the measured torque and with "
                     "the identified rigid-body model is shown beside.")
     p.add_argument("--robot", required=True, help="robot name or robot file")
-    p.add_argument("--ident", nargs="+", required=True, metavar="LOG", help="identification log(s)")
+    p.add_argument("--ident", nargs="+", default=None, metavar="LOG",
+                   help="identification log(s) (required unless --sim)")
     p.add_argument("--valid", nargs="+", required=True, metavar="LOG", help="validation log(s)")
     p.add_argument("--params", metavar="FILE", default=None,
                    help="baseline parameters (PARAMS.yaml of 'urident identify') instead of "
                         "identifying them on the --ident logs")
+    p.add_argument("--sim", metavar="MODEL.xml|MODEL.urdf", default=None,
+                   help="baseline: your simulator model as it is (MJCF through MuJoCo's inverse dynamics, "
+                        "URDF through Pinocchio and its <dynamics>); candidates add armature, damping, "
+                        "frictionloss, per-link mass/CoM, payload and drive-gain corrections")
+    p.add_argument("--write-sim", metavar="OUT.xml|OUT.urdf", default=None,
+                   help="with --sim: write the model with every finding its format can express")
     p.add_argument("--json-out", metavar="FILE", default=None, help="write the full report as JSON")
     options.add_overwrite_argument(p, "an existing JSON report or .rrd file")
     p.add_argument("--ident-rows", metavar="FIRST-LAST", type=options.row_range, default=None,
@@ -56,8 +63,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="a finding fitted inside the validation logs (CV mode) must correct its "
                         "joint by an RMS of at least RATIO x the joint's white-noise torque "
                         "(default 0.5; 0 turns the floor off)")
-    p.add_argument("--max-effects", type=options.int_range(1, 20), default=3, metavar="N",
-                   help="at most this many effects (stepwise selection, default 3)")
+    p.add_argument("--max-effects", type=options.int_range(1, 20), default=None, metavar="N",
+                   help="at most this many effects (stepwise selection, default 3; 12 with --sim)")
     p.add_argument("--seed", type=options.seed, default=0, help="bootstrap seed (default 0)")
     options.add_rerun_arguments(p, "residual maps and comparison")
     from urident.logs import add_log_arguments
@@ -85,10 +92,18 @@ def run(args: argparse.Namespace) -> int:
 
     options.check_rerun_args(args)
     options.output_path("--json-out", args.json_out, args.overwrite)
+    if args.sim or args.write_sim:
+        from urident.cli.gap_sim import run_sim
+
+        return run_sim(args, _load_all, _json_default)
+    if not args.ident:
+        from urident.errors import ConfigError
+
+        raise ConfigError("--ident LOG is required (or --sim MODEL for a simulator model's gap)")
     effects = args.effects or EFFECTS
     floor = {} if args.min_shrink_pct is None else {"min_shrink_pct": args.min_shrink_pct}
     config = GapConfig(effects=effects, **floor, cv_min_noise_ratio=args.cv_min_noise_ratio,
-                       max_effects=args.max_effects, seed=args.seed)
+                       max_effects=args.max_effects or 3, seed=args.seed)
     spec = load_robot(args.robot)
     params = None
     if args.params:

@@ -21,6 +21,7 @@ COMMANDS = (
     "identify",
     "validate",
     "gap",
+    "export",
     "view",
     "convert",
     "simulate",

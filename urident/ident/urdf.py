@@ -4,8 +4,10 @@ Each link frame is the paper's joint frame K_i (joint origin = the robot file's 
 K_i in K_{i−1}), the inertial origin is the centre of mass ρ = h/m and the inertia is taken about it
 (I_c = J − m(ρᵀρ·1 − ρρᵀ)). Viscous and Coulomb friction go to ``<dynamics damping friction>``; the
 reflected rotor inertias i_G²·C_M have no URDF element and are written in a comment (Pinocchio users
-add them as ``model.armature``). Only physically consistent parameters can be exported (a URDF
-link needs a positive mass and a positive semi-definite inertia).
+add them as ``model.armature``). Collision geometry: each capsule of the robot file as a cylinder
+and two spheres (URDF has no capsule). Only physically consistent parameters can be exported (a
+URDF link needs a positive mass and a positive semi-definite inertia): :func:`check_exportable`.
+The MJCF writer is :mod:`urident.sim.mjcf`.
 """
 
 from __future__ import annotations
@@ -39,21 +41,70 @@ def link_inertial(p10: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
     return m, com, inertia
 
 
-def to_urdf(spec, standard: np.ndarray, name: str | None = None) -> str:
-    """URDF text of ``spec``'s kinematics with the 78-vector ``standard``."""
-    from urident.ident.estimate_consistent import is_physically_consistent
+def check_exportable(standard, fmt: str = "URDF") -> np.ndarray:
+    """``standard`` as a float 78-vector if a simulator can take it; else ConfigError with the one
+    reason (which body's mass or pseudo-inertia, which drive parameter)."""
+    from urident.ident.estimate_consistent import pseudo_inertia
+    from urident.model.parameters import DRIVE, N_JOINTS, parameter_names
 
     p = np.asarray(standard, dtype=float)
     if p.shape != (N_PARAMS,):
-        raise ConfigError(f"URDF export needs the {N_PARAMS} standard parameters, got shape {p.shape}")
-    if not is_physically_consistent(p, tol=1e-7):
-        raise ConfigError("URDF export needs physically consistent parameters (use --method consistent)")
+        raise ConfigError(f"{fmt} export needs the {N_PARAMS} standard parameters, got shape {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise ConfigError(f"{fmt} export: the standard parameters are not all finite")
+    for i in range(N_JOINTS):
+        p10 = p[body_slice(i)]
+        if not p10[0] > 0:
+            raise ConfigError(f"{fmt} export needs physically consistent parameters: body {i + 1} has "
+                              f"mass {p10[0]:g} kg")
+        eig = float(np.linalg.eigvalsh(pseudo_inertia(p10)).min())
+        if eig < -1e-7 * max(1.0, p10[0]):
+            raise ConfigError(f"{fmt} export needs physically consistent parameters: body {i + 1}'s "
+                              f"pseudo-inertia has eigenvalue {eig:.3g} < 0 (no real mass distribution)")
+    names = parameter_names()
+    for k in np.flatnonzero(p[DRIVE] < -1e-7) + DRIVE.start:
+        raise ConfigError(f"{fmt} export needs physically consistent parameters: {names[k]} = {p[k]:.4g} < 0")
+    return p
+
+
+def _comment(text: str) -> str:
+    return "<!-- " + text.replace("--", "- -") + " -->"
+
+
+def _collision(capsules, indent: str) -> list[str]:
+    """A capsule as a cylinder along a→b and a sphere at each end."""
+    out = []
+    for c in capsules:
+        axis = np.asarray(c.b, float) - np.asarray(c.a, float)
+        length = float(np.linalg.norm(axis))
+        ends = [c.a, c.b] if length > 0 else [c.a]
+        if length > 0:
+            z = axis / length
+            helper = np.array([1.0, 0, 0]) if abs(z[0]) < 0.9 else np.array([0, 1.0, 0])
+            x = np.cross(helper, z)
+            x /= np.linalg.norm(x)
+            rot = np.column_stack([x, np.cross(z, x), z])
+            mid = (np.asarray(c.a, float) + np.asarray(c.b, float)) / 2
+            out += [f"{indent}<collision>", f'{indent}  <origin xyz="{_fmt(mid)}" rpy="{_fmt(_rpy(rot))}"/>',
+                    f'{indent}  <geometry><cylinder radius="{c.radius:.12g}" length="{length:.12g}"/></geometry>',
+                    f"{indent}</collision>"]
+        for end in ends:
+            out += [f"{indent}<collision>", f'{indent}  <origin xyz="{_fmt(end)}" rpy="0 0 0"/>',
+                    f'{indent}  <geometry><sphere radius="{c.radius:.12g}"/></geometry>', f"{indent}</collision>"]
+    return out
+
+
+def to_urdf(spec, standard: np.ndarray, name: str | None = None, notes=()) -> str:
+    """URDF text of ``spec``'s kinematics with the 78-vector ``standard``; ``notes``: more lines of
+    the header comment (e.g. the identified terms URDF cannot express)."""
+    p = check_exportable(standard, "URDF")
     name = name or f"{spec.name}_identified"
     axes = {"x": "1 0 0", "y": "0 1 0", "z": "0 0 1"}
     out = ['<?xml version="1.0"?>', f'<robot name="{escape(name)}">',
            "  <!-- identified by urident; rotor inertias i_G^2*C_M [kg m^2] (not part of URDF): "
-           + _fmt(p[ROTOR]) + " -->",
-           '  <link name="base_link"/>']
+           + _fmt(p[ROTOR]) + " -->"]
+    out += ["  " + _comment(line) for line in notes]
+    out += ['  <link name="base_link">'] + _collision(spec.base_collision, "    ") + ["  </link>"]
     parent = "base_link"
     for i, joint in enumerate(spec.joints):
         m, com, ic = link_inertial(p[body_slice(i)])
@@ -62,7 +113,7 @@ def to_urdf(spec, standard: np.ndarray, name: str | None = None) -> str:
                 f'      <origin xyz="{_fmt(com)}" rpy="0 0 0"/>', f'      <mass value="{m:.12g}"/>',
                 f'      <inertia ixx="{ic[0, 0]:.12g}" ixy="{ic[0, 1]:.12g}" ixz="{ic[0, 2]:.12g}" '
                 f'iyy="{ic[1, 1]:.12g}" iyz="{ic[1, 2]:.12g}" izz="{ic[2, 2]:.12g}"/>',
-                "    </inertial>", "  </link>",
+                "    </inertial>", *_collision(joint.collision, "    "), "  </link>",
                 f'  <joint name="{joint.name}" type="revolute">',
                 f'    <parent link="{parent}"/>', f'    <child link="{link}"/>',
                 f'    <origin xyz="{_fmt(joint.xyz)}" rpy="{_fmt(_rpy(joint.rotation))}"/>',
@@ -80,10 +131,10 @@ def to_urdf(spec, standard: np.ndarray, name: str | None = None) -> str:
 
 
 def write_urdf(spec, standard: np.ndarray, path: str | Path, name: str | None = None,
-               overwrite: bool = True) -> Path:
+               overwrite: bool = True, notes=()) -> Path:
     """Write the URDF atomically, never through a symbolic link (``overwrite=False``: must be new)."""
     from urident.fileio import write_text_atomic
 
     path = Path(path)
-    write_text_atomic(path, to_urdf(spec, standard, name), fsync=False, overwrite=overwrite)
+    write_text_atomic(path, to_urdf(spec, standard, name, notes), fsync=False, overwrite=overwrite)
     return path

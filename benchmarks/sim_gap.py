@@ -1,0 +1,78 @@
+"""Benchmark: the gap of a "downloaded-model-like" MJCF (nominal masses, solid-cylinder inertias,
+no armature, damping or frictionloss) against runs of the simulated controller with the
+``realistic`` effects (offline, ``urident simulate``). Prints the findings with their final values
+beside the simulated truth (the robot file's drive values), the validation RMS per joint before
+and after the written model as MuJoCo measures it, and the report's predicted shrink; the last
+line is one JSON object.
+
+    python benchmarks/sim_gap.py [--robot ur5e] [--max-effects 12]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--robot", default="ur5e")
+    ap.add_argument("--max-effects", type=int, default=12)
+    args = ap.parse_args()
+
+    from urident.cli.main import main as urident
+    from urident.model import load_robot
+    from urident.sim.mjcf import downloaded_like_standard, write_mjcf
+
+    spec = load_robot(args.robot)
+    truth = {"armature": spec.arrays["rotor_inertia"], "damping": spec.arrays["viscous_friction"],
+             "frictionloss": spec.arrays["coulomb_friction"]}
+    keys = {"armature": "armature_kg_m2", "damping": "damping_nm_s_per_rad", "frictionloss": "frictionloss_nm"}
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        model = write_mjcf(spec, downloaded_like_standard(spec), tmp / "downloaded.xml")
+        log = tmp / "valid.csv"
+        assert urident(["simulate", "--trajectory", str(ROOT / "experiments" / f"{spec.name}_valid.yaml"),
+                        "--out", str(log), "--effects", "realistic"]) == 0
+        t0 = time.perf_counter()
+        assert urident(["gap", "--robot", spec.name, "--sim", str(model), "--valid", str(log),
+                        "--write-sim", str(tmp / "corrected.xml"), "--json-out", str(tmp / "gap.json"),
+                        "--max-effects", str(args.max_effects)]) == 0
+        wall = time.perf_counter() - t0
+        doc = json.loads((tmp / "gap.json").read_text())
+    before = np.array(doc["baseline"]["rms_nm"])
+    after = np.array(doc["sim_corrected"]["rms_nm"])
+    predicted = np.array(doc["sim_predicted"]["rms_nm"])
+    rows = []
+    print(f"\n{'finding':14s} joint  expressible  final value   truth   error")
+    for f in doc["findings"]:
+        value = (f.get("final_magnitude") or {}).get(keys.get(f["effect"], ""), None)
+        true = truth[f["effect"]][f["joint"] - 1] if f["effect"] in truth else None
+        err = None if value is None or true is None or true == 0 else 100 * (value / true - 1)
+        rows.append({"effect": f["effect"], "joint": f["joint"], "expressible": f["expressible"],
+                     "value": value, "truth": None if true is None else float(true), "error_pct": err})
+        print(f"{f['effect']:14s} {f['joint']:5d}  {str(f['expressible']):11s}  "
+              f"{'' if value is None else f'{value:11.4g}'}  {'' if true is None else f'{true:6.3g}'}  "
+              f"{'' if err is None else f'{err:+5.1f} %'}")
+    cut = 100 * (1 - after / before)
+    pred = 100 * (1 - predicted / before)
+    print("validation RMS [N·m], baseline  " + " ".join(f"{v:7.3f}" for v in before))
+    print("written model (MuJoCo)          " + " ".join(f"{v:7.3f}" for v in after))
+    print("cut measured by MuJoCo [%]      " + " ".join(f"{v:7.1f}" for v in cut))
+    print("cut predicted by the report [%] " + " ".join(f"{v:7.1f}" for v in pred))
+    print(f"gap --sim wall time {wall:.1f} s")
+    print(json.dumps({"robot": spec.name, "findings": rows, "baseline_rms_nm": before.tolist(),
+                      "corrected_rms_nm": after.tolist(), "cut_pct": cut.round(2).tolist(),
+                      "predicted_cut_pct": pred.round(2).tolist(),
+                      "max_disagreement_points": float(np.max(np.abs(cut - pred))), "wall_s": round(wall, 1)}))
+
+
+if __name__ == "__main__":
+    main()

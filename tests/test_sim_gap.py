@@ -1,0 +1,203 @@
+"""gap --sim MODEL: a simulator model as the gap's baseline, --write-sim, and bad model files."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from urident.cli.main import main
+
+ROOT = Path(__file__).resolve().parents[1]
+VALID = ROOT / "logs" / "sample_valid.csv"      # a UR5 log
+
+
+@pytest.fixture(scope="module")
+def ur5_models(tmp_path_factory):
+    from urident.ident.urdf import write_urdf
+    from urident.model import load_robot
+    from urident.sim.mjcf import downloaded_like_standard, write_mjcf
+
+    out = tmp_path_factory.mktemp("simgap")
+    spec = load_robot("ur5")
+    p = downloaded_like_standard(spec)
+    return {"spec": spec, "p": p, "xml": write_mjcf(spec, p, out / "ur5.xml"),
+            "urdf": write_urdf(spec, p, out / "ur5.urdf"), "dir": out}
+
+
+def _gap(model, capsys, robot="ur5", extra=()):
+    code = main(["gap", "--robot", robot, "--sim", str(model), "--valid", str(VALID), *extra])
+    err = capsys.readouterr().err.strip()
+    return code, err
+
+
+def _edit(src: Path, dst: Path, old: str, new: str, count: int = 1) -> Path:
+    text = src.read_text()
+    assert old in text
+    dst.write_text(text.replace(old, new, count))
+    return dst
+
+
+def test_a_model_of_another_arm_is_refused_naming_the_joint(ur5_models, capsys):
+    code, err = _gap(ur5_models["xml"], capsys, robot="ur5e")
+    assert code == 2 and err.count("\n") == 0
+    assert re.search(r"<joint name='shoulder_pan'>: its anchor is [\d.]+ mm from ur5e's joint 1", err), err
+
+
+def test_axes_and_link_lengths_beyond_tolerance_are_refused(ur5_models, capsys, tmp_path):
+    bad = _edit(ur5_models["xml"], tmp_path / "axis.xml", 'axis="0 1 0"', 'axis="0 1 0.02"')
+    code, err = _gap(bad, capsys)
+    assert code == 2 and "<joint name='shoulder_lift'>: its axis is 0.020 rad" in err
+    text = ur5_models["xml"].read_text()
+    pos = re.search(r'<body name="elbow_link" pos="([^"]+)"', text).group(1)
+    x, y, z = map(float, pos.split())
+    longer = _edit(ur5_models["xml"], tmp_path / "long.xml", f'pos="{pos}"', f'pos="{x} {y} {z + 0.002}"')
+    code, err = _gap(longer, capsys)
+    assert code == 2 and "<joint name='elbow'>: its anchor is 2.0 mm from ur5's joint 3" in err
+    # within 1 mm: accepted by the chain check (the run then goes on; only the load is tested here)
+    from urident.sim.models import load_sim_model
+
+    close = _edit(ur5_models["xml"], tmp_path / "close.xml", f'pos="{pos}"', f'pos="{x} {y} {z + 0.0005}"')
+    assert load_sim_model(close, ur5_models["spec"]).joint_names[2] == "elbow"
+
+
+def test_unparsable_and_incomplete_models_name_the_element(ur5_models, capsys, tmp_path):
+    broken = tmp_path / "broken.xml"
+    broken.write_text("<mujoco><worldbody>")
+    code, err = _gap(broken, capsys)
+    assert code == 2 and "broken.xml: not valid XML" in err
+    unknown = _edit(ur5_models["xml"], tmp_path / "unknown.xml", "<worldbody>", '<worldbody><geom typo="1"/>')
+    code, err = _gap(unknown, capsys)
+    assert code == 2 and "MuJoCo cannot load it" in err and "typo" in err and err.count("\n") == 0
+    text = ur5_models["xml"].read_text()
+    start = text.index('<joint name="wrist_3"')
+    short = tmp_path / "short.xml"
+    short.write_text(text[:start] + text[text.index("/>", start) + 2:].replace(
+        '<motor name="wrist_3" joint="wrist_3" gear="1" ctrlrange="-28 28"/>', ""))
+    code, err = _gap(short, capsys)
+    assert code == 2 and "5 hinge joints, ur5 has 6" in err, err
+    slide = _edit(ur5_models["xml"], tmp_path / "slide.xml", 'type="hinge" axis="0 0 1"', 'type="slide" axis="0 0 1"')
+    code, err = _gap(slide, capsys)
+    assert code == 2 and "<joint name='shoulder_pan' type='slide'>" in err
+
+
+def test_urdf_mimic_and_continuous_joints_are_refused(ur5_models, capsys, tmp_path):
+    cont = _edit(ur5_models["urdf"], tmp_path / "c.urdf", '<joint name="wrist_3" type="revolute">',
+                 '<joint name="wrist_3" type="continuous">')
+    code, err = _gap(cont, capsys)
+    assert code == 2 and "<joint name='wrist_3' type='continuous'>" in err
+    mimic = _edit(ur5_models["urdf"], tmp_path / "m.urdf", '<joint name="wrist_2" type="revolute">',
+                  '<joint name="wrist_2" type="revolute"><mimic joint="wrist_1"/>')
+    code, err = _gap(mimic, capsys)
+    assert code == 2 and "<joint name='wrist_2'> has a <mimic> element" in err
+    code, err = _gap(ur5_models["urdf"], capsys, extra=["--write-sim", str(tmp_path / "x.xml")])
+    assert code == 2 and "--write-sim" in err and "URDF" in err
+
+
+def test_write_sim_changes_exactly_what_it_says(ur5_models, tmp_path):
+    from urident.model import regressor_blocks
+    from urident.sim.correct import write_corrected
+    from urident.sim.models import load_sim_model
+
+    spec = ur5_models["spec"]
+    sim = load_sim_model(ur5_models["xml"], spec)
+    changes = {"armature": np.array([0.3, 0, 0, 0, 0, 0.01]), "damping": np.array([0, 4.0, 0, 0, 0, 0]),
+               "frictionloss": np.array([0, 0, 5.0, 0, 0, 0]), "mass": np.array([0, 0, 0.5, 0, 0, 0]),
+               "first_moment": np.zeros((6, 3)), "payload": (1.5, np.zeros(3))}
+    changes["first_moment"][2] = [0.002, 0.001, 0.02]
+    out = write_corrected(sim, spec, changes, tmp_path / "corrected.xml", notes=["a note"])
+    new = load_sim_model(out, spec)
+    assert "a note" in out.read_text()
+    np.testing.assert_allclose(new.handle.dof_armature, sim.handle.dof_armature + changes["armature"], atol=1e-12)
+    np.testing.assert_allclose(new.handle.dof_damping, changes["damping"], atol=1e-12)
+    np.testing.assert_allclose(new.handle.dof_frictionloss.sum() + new.handle.tendon_frictionloss.sum(), 5.0)
+    # gravity torques at rest: exactly the mass/first-moment change and a point mass at the tool
+    rng = np.random.default_rng(3)
+    q = rng.uniform(-2, 2, (20, 6))
+    zero = np.zeros_like(q)
+    blocks = regressor_blocks(spec, q, zero, zero)
+    delta = np.zeros(blocks.shape[2])
+    delta[20:24] = [0.5, 0.002, 0.001, 0.02]
+    from urident.ident.features import payload_columns
+
+    expected = blocks @ delta + 1.5 * payload_columns(blocks, spec.tool_xyz)[:, :, 0]
+    np.testing.assert_allclose(new.predict(q, zero, zero) - sim.predict(q, zero, zero), expected, atol=1e-9)
+    # in motion too: the correction keeps the link's inertia about its joint frame, as its columns do
+    qd, qdd = rng.normal(0, 1, q.shape), rng.normal(0, 3, q.shape)
+    blocks = regressor_blocks(spec, q, qd, qdd)
+    expected = blocks @ delta + 1.5 * payload_columns(blocks, spec.tool_xyz)[:, :, 0] + changes["armature"] * qdd
+    np.testing.assert_allclose(new.rigid(q, qd, qdd) - sim.rigid(q, qd, qdd), expected, atol=1e-4)
+
+
+def test_gap_sim_names_the_missing_drive_terms_and_mujoco_measures_the_written_model(ur5_models, tmp_path, capsys):
+    from urident.ident import load_params
+
+    # the truth: a consistent estimate exported with its drive terms; the baseline: the same
+    # model with armature, damping and frictionloss removed
+    params = tmp_path / "p.yaml"
+    assert main(["identify", str(ROOT / "logs" / "sample_ident.csv"), "--robot", "ur5", "--method",
+                 "consistent", "--out", str(params)]) == 0
+    standard = load_params(params).standard.copy()
+    truth = standard[-18:].copy()
+    standard[-18:] = 0
+    from urident.sim.mjcf import write_mjcf
+
+    bare = write_mjcf(ur5_models["spec"], standard, tmp_path / "bare.xml")
+    out, js = tmp_path / "fixed.xml", tmp_path / "gap.json"
+    capsys.readouterr()
+    assert main(["gap", "--robot", "ur5", "--sim", str(bare), "--valid", str(VALID), "--write-sim", str(out),
+                 "--json-out", str(js)]) == 0
+    doc = json.loads(js.read_text())
+    first = doc["findings"][0]
+    assert first["effect"] in ("frictionloss", "damping", "armature") and first["expressible"] is True
+    for f in doc["findings"]:
+        assert f["expressible"] == (f["effect"] in ("armature", "damping", "frictionloss", "rigid_body",
+                                                    "payload_error"))
+    # values of the final joint fit, where both terms of a joint were found: within 10 % of the truth
+    found = {(f["effect"], f["joint"]): f["final_magnitude"] for f in doc["findings"]}
+    both = [j for j in range(1, 7) if ("damping", j) in found and ("frictionloss", j) in found]
+    assert len(both) >= 2, found
+    for j in both:
+        assert abs(found[("frictionloss", j)]["frictionloss_nm"] - truth[11 + j]) <= 0.1 * truth[11 + j]
+        assert abs(found[("damping", j)]["damping_nm_s_per_rad"] - truth[5 + j]) <= 0.1 * truth[5 + j]
+    before = np.array(doc["baseline"]["rms_nm"])
+    measured = np.array(doc["sim_corrected"]["rms_nm"])
+    predicted = np.array(doc["sim_predicted"]["rms_nm"])
+    big = before > 0.5
+    assert np.all(measured[big] < before[big])
+    np.testing.assert_allclose(100 * (1 - measured[big] / before[big]), 100 * (1 - predicted[big] / before[big]),
+                               atol=3.0)
+
+
+def test_downloaded_like_ur5e_mjcf_against_a_realistic_run(tmp_path):
+    """The acceptance scenario of benchmarks/sim_gap.py: nominal masses, cylinder inertias, no drive
+    terms; a validation run of the simulated controller with the realistic effects (offline)."""
+    from urident.model import load_robot
+    from urident.sim.mjcf import downloaded_like_standard, write_mjcf
+
+    spec = load_robot("ur5e")
+    model = write_mjcf(spec, downloaded_like_standard(spec), tmp_path / "downloaded.xml")
+    log = tmp_path / "valid.csv"
+    assert main(["simulate", "--trajectory", str(ROOT / "experiments" / "ur5e_valid.yaml"), "--out", str(log),
+                 "--effects", "realistic"]) == 0
+    js = tmp_path / "gap.json"
+    assert main(["gap", "--robot", "ur5e", "--sim", str(model), "--valid", str(log), "--write-sim",
+                 str(tmp_path / "fixed.xml"), "--json-out", str(js)]) == 0
+    doc = json.loads(js.read_text())
+    assert doc["findings"][0]["effect"] == "frictionloss"
+    found = {(f["effect"], f["joint"]): f["final_magnitude"] for f in doc["findings"]}
+    for j in (1, 2, 3):     # the big joints: the robot file's drive values are the simulated truth
+        assert abs(found[("frictionloss", j)]["frictionloss_nm"] / spec.arrays["coulomb_friction"][j - 1] - 1) <= 0.1
+    for j in (1, 2):
+        assert abs(found[("damping", j)]["damping_nm_s_per_rad"] / spec.arrays["viscous_friction"][j - 1] - 1) <= 0.1
+    before = np.array(doc["baseline"]["rms_nm"])
+    after = np.array(doc["sim_corrected"]["rms_nm"])
+    predicted = np.array(doc["sim_predicted"]["rms_nm"])
+    noise = 0.02 * spec.drive_gains * 3       # 3 sigma of the simulated 0.02 A current noise [N·m]
+    big = before > noise
+    assert big.all()
+    assert np.all(after[big] <= 0.5 * before[big])
+    np.testing.assert_allclose(100 * (1 - after / before), 100 * (1 - predicted / before), atol=3.0)

@@ -1,0 +1,109 @@
+"""``urident gap --sim MODEL [--write-sim OUT]``: the gap of the user's simulator model (MJCF or
+URDF); see :mod:`urident.gap.sim_baseline`. Called by :mod:`urident.cli.cmd_gap`."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from urident.cli import options
+
+#: --max-effects default with --sim: a downloaded model typically lacks three terms on six joints
+SIM_MAX_EFFECTS = 12
+
+
+def run_sim(args: argparse.Namespace, load_all, json_default) -> int:
+    """``load_all(paths, args, rows, robot)`` and ``json_default``: cmd_gap's log loader and JSON
+    encoder hook."""
+    import numpy as np
+
+    from urident.errors import ConfigError
+    from urident.gap import GapConfig, format_report
+    from urident.gap.candidates import EFFECTS
+    from urident.gap.results import e_n, rms
+    from urident.gap.sim_baseline import corrections, diagnose_sim, expressible, expressible_fit
+    from urident.model import load_robot
+    from urident.sim.models import load_sim_model, model_format
+
+    if not args.sim:
+        raise ConfigError("--write-sim needs --sim MODEL (the model to correct)")
+    if args.params:
+        raise ConfigError("--params and --sim are two baselines: give one")
+    fmt = model_format(args.sim)
+    if args.write_sim:
+        if model_format(args.write_sim) != fmt:
+            raise ConfigError(f"--write-sim {args.write_sim}: must be {fmt.upper()} like --sim {args.sim}")
+        options.output_path("--write-sim", args.write_sim, args.overwrite)
+    spec = load_robot(args.robot)
+    sim = load_sim_model(args.sim, spec)
+    floor = {} if args.min_shrink_pct is None else {"min_shrink_pct": args.min_shrink_pct}
+    config = GapConfig(effects=args.effects or EFFECTS, **floor, cv_min_noise_ratio=args.cv_min_noise_ratio,
+                       max_effects=args.max_effects or SIM_MAX_EFFECTS, seed=args.seed)
+    drive_gains = None if args.drive_gains is None else np.array(args.drive_gains)
+    valid = load_all(args.valid, args, args.valid_rows, spec.name)
+    if args.ident:
+        print("note: --ident logs are not used with --sim (the simulator model is the baseline, not refitted)")
+    result = diagnose_sim(valid, spec, sim, drive_gains=drive_gains, config=config)
+    print(format_report(result))
+    print("")
+    print(f"Simulator model {args.sim} ({fmt.upper()}): which findings the format can express")
+    final_fit = {(c.effect, c.joint): c.magnitude(beta, spec) for c, beta in result.fit.coefficients().items()}
+    for f in result.findings:
+        yes = expressible(fmt, f.effect)
+        value = final_fit.get((f.effect, None if f.effect == "payload_error" else f.joint - 1), {})
+        shown = ", ".join(f"{k} = {v:.4g}" for k, v in value.items() if isinstance(v, float))
+        print(f"  {f.effect:22s} joint {f.joint}  {'expressible' if yes else 'NOT expressible':16s} "
+              f"{f.shrink_pct:5.1f} % shrink  {shown}")
+    doc = result.as_dict()
+    final = final_fit
+    for fd, f in zip(doc.get("findings", []), result.findings):
+        fd["expressible"] = expressible(fmt, f.effect)
+        # the value to put into the model: all chosen corrections fitted together
+        fd["final_magnitude"] = final.get((f.effect, None if f.effect == "payload_error" else f.joint - 1))
+    doc["baseline"]["sim_model"] = {"path": str(args.sim), "format": fmt}
+    r0 = result.valid.residual
+    chosen, fit = expressible_fit(result)
+    written = [c for c in chosen if fmt == "mjcf" or c.effect in ("damping", "frictionloss")]
+    if len(written) != len(chosen):
+        print("  URDF: link mass/CoM and payload corrections are not written by --write-sim (only <dynamics>)")
+    if fmt == "mjcf":
+        from urident.sim.correct import unrealisable_links
+
+        bad = set(unrealisable_links(sim, spec, corrections(result)))
+        for c in written:
+            if c.effect == "rigid_body" and c.joint in bad:
+                print(f"  {c.name}: not a real mass distribution (the inertia about the new centre of mass "
+                      "would not be positive): not written")
+        written = [c for c in written if not (c.effect == "rigid_body" and c.joint in bad)]
+    if len(written) != len(chosen):
+        fit = result.correction(written)
+    predicted = r0 - fit.change(result.valid) if written else r0
+    inexpressible = [c for c in result.chosen() if not expressible(fmt, c.effect)]
+    shrink = lambda before, after: 100.0 * (1 - after / np.where(before > 0, before, np.inf))  # noqa: E731
+    print("  shrink of the validation RMS per joint [%]:")
+    print("    expressible findings, predicted   " + " ".join(f"{v:6.1f}" for v in shrink(rms(r0), rms(predicted))))
+    if inexpressible:
+        rest = r0 - result.correction(inexpressible).change(result.valid)
+        print("    inexpressible findings, predicted " + " ".join(f"{v:6.1f}" for v in shrink(rms(r0), rms(rest))))
+    doc["sim_predicted"] = {"e_n": float(e_n(predicted)), "rms_nm": [float(v) for v in rms(predicted)]}
+    if args.write_sim:
+        from urident.sim.correct import write_corrected
+
+        changes = corrections(result, written)
+        notes = [f"corrected by urident gap from {args.sim} on {', '.join(map(str, args.valid))}"]
+        notes += [f"not expressible here: {c.name}" for c in inexpressible]
+        path = write_corrected(sim, spec, changes, args.write_sim, notes=notes, overwrite=args.overwrite)
+        corrected = load_sim_model(path, spec)
+        p = result.valid.data.prepared
+        r1 = p.tau - corrected.predict(p.q, p.qd, p.qdd)
+        doc["sim_corrected"] = {"e_n": float(e_n(r1)), "rms_nm": [float(v) for v in rms(r1)], "path": str(path)}
+        print("    written model, measured by " + ("MuJoCo" if fmt == "mjcf" else "Pinocchio") + "    "
+              + " ".join(f"{v:6.1f}" for v in shrink(rms(r0), rms(r1))))
+        print(f"wrote {path}")
+    if args.json_out:
+        from urident.fileio import write_text_atomic
+
+        text = json.dumps(doc, indent=1, allow_nan=False, default=json_default)
+        write_text_atomic(args.json_out, text, fsync=False, overwrite=args.overwrite)
+        print(f"\nreport written to {args.json_out}")
+    return 0

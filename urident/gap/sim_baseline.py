@@ -1,0 +1,174 @@
+"""A user's simulator model (MJCF or URDF, :mod:`urident.sim.models`) as the gap's baseline.
+
+The baseline is the model as it is, not refitted: τ̂ = the simulator's inverse dynamics on the
+validation logs' states (MuJoCo's ``mj_inverse`` for MJCF, Pinocchio + ``<dynamics>`` for URDF).
+With no refit on identification logs every candidate is fitted inside the validation logs (CV
+mode). Beside the catalogue, the candidates a simulator model typically needs, per joint j:
+
+=============  ==========================================  ===================================
+armature       q̈_j                                         joint ``armature`` (MJCF only)
+damping        q̇_j                                         ``damping``
+frictionloss   tanh(q̇_j/ε)                                 ``frictionloss`` / ``friction``
+rigid_body     body j's m, m·ρ columns of the regressor      link ``<inertial>`` mass and CoM
+=============  ==========================================  ===================================
+
+plus ``payload_error`` (a body on the flange) and ``torque_constant_error`` (a drive gain scale,
+a property of the measurement, which no simulator format holds). :func:`expressible` says which
+findings a format can take; :func:`corrections` turns the expressible ones into the changes
+:mod:`urident.sim.correct` writes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from urident.gap.candidates import Candidate, families, payload_error, torque_constant_error
+from urident.gap.config import GapConfig
+from urident.gap.data import build_set
+from urident.gap.residual import SetContext, smooth_derivative
+from urident.ident.design import ModelConfig
+
+SIM_EFFECTS = ("armature", "damping", "frictionloss", "rigid_body")
+#: Findings each format can express (the rest: the catalogue's effects, a drive gain scale).
+EXPRESSIBLE = {"mjcf": frozenset({"armature", "damping", "frictionloss", "rigid_body", "payload_error"}),
+               "urdf": frozenset({"damping", "frictionloss", "rigid_body", "payload_error"})}
+
+
+def expressible(fmt: str, effect: str) -> bool:
+    return effect in EXPRESSIBLE[fmt]
+
+
+@dataclass(frozen=True)
+class SimBaseline:
+    """What the report and JSON say about the baseline (an IdentifiedModel's ``method``/``model``)."""
+
+    method: str
+    model: ModelConfig
+    fmt: str
+    path: str
+
+
+class SimCandidate(Candidate):
+    def magnitude(self, beta, spec=None) -> dict:
+        b = [float(x) for x in np.asarray(beta, float)]
+        out: dict = {"coefficients": b}
+        if self.effect == "armature":
+            out["armature_kg_m2"] = b[0]
+        elif self.effect == "damping":
+            out["damping_nm_s_per_rad"] = b[0]
+        elif self.effect == "frictionloss":
+            out["frictionloss_nm"] = b[0]
+        elif self.effect == "rigid_body":
+            out.update(mass_change_kg=b[0], first_moment_change_kg_m=b[1:4])
+        return out
+
+
+def _on_joint(ctx, j, column) -> np.ndarray:
+    out = np.zeros((ctx.n, 6, 1))
+    out[:, j, 0] = column
+    return out
+
+
+def _regressor(ctx, spec) -> np.ndarray:
+    key = "sim_regressor"
+    if key not in ctx.cache:
+        from urident.model import regressor_blocks
+
+        ctx.cache[key] = regressor_blocks(spec, ctx.q, ctx.qd, ctx.qdd, ctx.friction_eps)
+    return ctx.cache[key]
+
+
+def sim_candidates(spec) -> list[list[Candidate]]:
+    """One family per (simulator effect, joint), all CV mode."""
+    from urident.model.parameters import body_slice
+
+    out = []
+    for j in range(6):
+        out.append([SimCandidate("armature", j, "", "cv", ("qdd",), lambda c, j=j: _on_joint(c, j, c.qdd[:, j]))])
+        out.append([SimCandidate("damping", j, "", "cv", ("qd",), lambda c, j=j: _on_joint(c, j, c.qd[:, j]))])
+        out.append([SimCandidate("frictionloss", j, "", "cv", ("tanh(qd/eps)",),
+                                 lambda c, j=j: _on_joint(c, j, c.sign()[:, j]))])
+        cols = slice(body_slice(j).start, body_slice(j).start + 4)
+        out.append([SimCandidate("rigid_body", j, f"link {j + 1} mass and centre of mass", "cv",
+                                 ("m", "m*rho_x", "m*rho_y", "m*rho_z"),
+                                 lambda c, cols=cols: _regressor(c, spec)[:, :, cols])])
+    return out
+
+
+def make_sim_context(sim, data) -> SetContext:
+    p = data.prepared
+    tau_hat = sim.predict(p.q, p.qd, p.qdd)
+    tau_link = sim.rigid(p.q, p.qd, p.qdd)
+    dtau = smooth_derivative(tau_hat, p.t, p.segment, 1)
+    ddtau = smooth_derivative(tau_link, p.t, p.segment, 2)
+    # one column (the prediction) stands in for a design matrix: nothing is refitted
+    return SetContext(data, tau_hat.reshape(-1, 1), tau_hat, tau_link, dtau, ddtau, float(sim.friction_eps), {})
+
+
+def diagnose_sim(valid_recordings: Sequence, spec, sim, *, drive_gains=None,
+                 config: GapConfig | None = None):
+    """The diagnosis (where / which / how far) of ``sim`` (a :class:`urident.sim.models.SimModel`) on
+    the validation recordings; a :class:`urident.gap.results.GapResult` whose ``model`` is a
+    :class:`SimBaseline`."""
+    from urident.gap.bootstrap import default_block_length
+    from urident.gap.results import GapResult, e_n, rms
+    from urident.gap.scoring import Scorer
+    from urident.gap.selection import select
+    from urident.gap.where import describe_where
+
+    config = config or GapConfig()
+    valid = build_set(valid_recordings, spec, drive_gains, None, "validation logs")
+    ctx = make_sim_context(sim, valid)
+    scorer = Scorer(ctx, ctx, config.n_folds)
+    where = describe_where(ctx, ctx)
+    fams = sim_candidates(spec)
+    fams.append([payload_error(spec, "cv")])
+    fams += [[torque_constant_error(j, "cv")] for j in range(6)]
+    seen = {("payload_error", None)} | {("torque_constant_error", j) for j in range(6)}
+    others = [e for e in config.effects if e not in ("payload_error", "torque_constant_error")]
+    for fam in families(spec, ctx, ctx, others):
+        if fam[0].mode == "ident" and fam[0].key not in seen:     # no refit: every effect in CV mode
+            for c in fam:
+                c.mode = "cv"
+        if fam[0].mode == "cv" and fam[0].key not in seen:
+            seen.add(fam[0].key)
+            fams.append(fam)
+    pool = [max(f, key=scorer.training_gain) if len(f) > 1 else f[0] for f in fams]
+    block = default_block_length(ctx.n, valid.sample_rate * config.block_s)
+    findings, steps, confounds, current = select(scorer, pool, block, config, ctx, spec)
+    r0 = ctx.residual
+    baseline = SimBaseline(f"{sim.fmt} model {sim.path.name}", ModelConfig(friction_eps=sim.friction_eps),
+                           sim.fmt, str(sim.path))
+    return GapResult(spec.name, baseline, ctx, ctx, e_n(r0), rms(r0), e_n(current.residual),
+                     rms(current.residual), findings, current, steps, confounds, where, config, scorer)
+
+
+def corrections(result, candidates=None) -> dict:
+    """The expressible findings of a :func:`diagnose_sim` result (or only ``candidates`` of them,
+    refitted together) as model changes:
+    ``{"armature": (6,), "damping": (6,), "frictionloss": (6,), "mass": (6,), "first_moment": (6, 3),
+    "payload": (mass, first moment (3,)) or None}`` (additions to the model's values)."""
+    fmt = result.model.fmt
+    out = {"armature": np.zeros(6), "damping": np.zeros(6), "frictionloss": np.zeros(6),
+           "mass": np.zeros(6), "first_moment": np.zeros((6, 3)), "payload": None}
+    fit = result.fit if candidates is None else result.correction(list(candidates))
+    for c, beta in fit.coefficients().items():
+        if not expressible(fmt, c.effect):
+            continue
+        if c.effect in ("armature", "damping", "frictionloss"):
+            out[c.effect][c.joint] += beta[0]
+        elif c.effect == "rigid_body":
+            out["mass"][c.joint] += beta[0]
+            out["first_moment"][c.joint] += beta[1:4]
+        elif c.effect == "payload_error":
+            out["payload"] = (float(beta[0]), np.asarray(beta[1:4], float))
+    return out
+
+
+def expressible_fit(result):
+    """The chosen candidates the format can express, fitted together on all validation samples."""
+    chosen = [c for c in result.chosen() if expressible(result.model.fmt, c.effect)]
+    return chosen, result.correction(chosen)

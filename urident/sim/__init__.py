@@ -1,0 +1,10 @@
+"""Physics-simulator models of an identified arm: MJCF (MuJoCo) and URDF export, the identified
+terms a format cannot express, and MuJoCo's own inverse dynamics.
+
+* :mod:`urident.sim.mjcf` writes MJCF as plain XML (no dependency); the URDF writer is
+  :mod:`urident.ident.urdf`;
+* :mod:`urident.sim.terms` says which identified terms each format can express and what share of
+  a validation torque the others carry;
+* :mod:`urident.sim.mujoco_model` is **the only importer of ``mujoco``** (an optional extra),
+  imported lazily with an install hint.
+"""

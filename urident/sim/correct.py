@@ -1,0 +1,181 @@
+"""Write a user's simulator model with the corrections the gap found (``urident gap --write-sim``).
+
+The file is edited, not regenerated: everything else in it stays. Per joint: armature, damping
+and Coulomb friction become the model's value plus the correction (MJCF: ``frictionloss`` in the
+two pieces of :mod:`urident.sim.mjcf`, joint and fixed tendon ``<joint>_friction``, so MuJoCo's
+force follows tanh(q̇/ε); URDF: ``<dynamics damping friction>``). A link's mass and first-moment
+correction (about the robot's joint frame K_i, turned into the body's frame) moves its inertial's
+mass and centre of mass and keeps its inertia about K_i's origin, as the correction's columns do. A payload is a
+point mass body ``payload`` at the tool point (MJCF). URDF: link and payload corrections are not
+written (listed by the caller).
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+
+from urident.errors import ConfigError
+
+
+def _parse(path) -> ET.ElementTree:
+    """The file with its comments kept."""
+    return ET.parse(path, parser=ET.XMLParser(target=ET.TreeBuilder(insert_comments=True)))
+
+
+def _fmt(values) -> str:
+    return " ".join(f"{float(v):.12g}" for v in np.atleast_1d(values))
+
+
+def _shift(x: np.ndarray) -> np.ndarray:
+    """Parallel-axis term |x|²·1 − x·xᵀ (per kg)."""
+    return x @ x * np.eye(3) - np.outer(x, x)
+
+
+def _mjcf_text(sim, spec, changes: dict, notes) -> str:
+    from urident.model.kinematics import frame_poses
+    from urident.sim.mjcf import FRICTION_PIECES, friction_softness, mujoco_inertia, quaternion
+    from urident.sim.mujoco_model import import_mujoco
+
+    mj = import_mujoco()
+    model = sim.handle
+    tree = _parse(sim.path)
+    root = tree.getroot()
+    parents = {child: parent for parent in root.iter() for child in parent}
+    data = mj.MjData(model)
+    data.qpos[:] = 0
+    mj.mj_kinematics(model, data)
+    rot, pos = frame_poses(spec, np.zeros((1, 6)))
+    tendons = root.find("tendon")
+    for i, name in enumerate(sim.joint_names):
+        joint = root.find(f".//joint[@name='{name}']")
+        if joint is None:
+            raise ConfigError(f"{sim.path}: <joint name={name!r}> not found to correct")
+        dof = model.jnt_dofadr[i]
+        joint.set("armature", f"{max(model.dof_armature[dof] + changes['armature'][i], 0.0):.12g}")
+        joint.set("damping", f"{max(model.dof_damping[dof] + changes['damping'][i], 0.0):.12g}")
+        if changes["frictionloss"][i] != 0:
+            old = model.dof_frictionloss[dof]
+            for t in range(model.ntendon):
+                if mj.mj_id2name(model, mj.mjtObj.mjOBJ_TENDON, t) == f"{name}_friction":
+                    old += model.tendon_frictionloss[t]
+            fc = max(old + changes["frictionloss"][i], 0.0)
+            w = float(model.dof_invweight0[dof])
+            (s1, k1), (s2, k2) = FRICTION_PIECES
+            ref, imp = friction_softness(fc * s1, w, sim.friction_eps / k1)
+            joint.set("frictionloss", f"{fc * s1:.12g}")
+            joint.set("solreffriction", ref)
+            joint.set("solimpfriction", imp)
+            if tendons is None:
+                tendons = ET.SubElement(root, "tendon")
+            for old_t in tendons.findall(f"fixed[@name='{name}_friction']"):
+                tendons.remove(old_t)
+            ref, imp = friction_softness(fc * s2, w, sim.friction_eps / k2)
+            fixed = ET.SubElement(tendons, "fixed", name=f"{name}_friction", frictionloss=f"{fc * s2:.12g}",
+                                  solreffriction=ref, solimpfriction=imp)
+            ET.SubElement(fixed, "joint", joint=name, coef="1")
+        dm, dh = changes["mass"][i], changes["first_moment"][i]
+        if dm != 0 or np.any(dh != 0):
+            b = int(model.jnt_bodyid[i])
+            body = parents[joint]
+            m = float(model.body_mass[b])
+            xb, rb = np.array(data.xpos[b]), np.array(data.xmat[b]).reshape(3, 3)
+            com = np.array(data.xipos[b])
+            first = m * (com - pos[0, i]) + rot[0, i] @ dh      # about K_i's origin, world axes
+            mass = m + dm
+            if not mass > 0:
+                raise ConfigError(f"{sim.path}: correcting body {body.get('name')!r} leaves mass {mass:g} kg")
+            new_com = pos[0, i] + first / mass
+            ipos = rb.T @ (new_com - xb)
+            # the correction keeps the inertia about K_i's origin (its columns are m and m·ρ only)
+            ri = np.array(data.ximat[b]).reshape(3, 3)
+            i_com = ri @ np.diag(model.body_inertia[b]) @ ri.T
+            about_k = i_com + m * _shift(com - pos[0, i])
+            i_new = about_k - mass * _shift(new_com - pos[0, i])
+            if np.linalg.eigvalsh(i_new).min() < 0:
+                raise ConfigError(f"{sim.path}: the mass/CoM correction of body {body.get('name')!r} is not a "
+                                  "real mass distribution (drop it: unrealisable_links)")
+            i_new, _ = mujoco_inertia(i_new)
+            i_body = rb.T @ i_new @ rb
+            for old_i in body.findall("inertial"):
+                body.remove(old_i)
+            inertial = ET.Element("inertial", pos=_fmt(ipos), mass=f"{mass:.12g}", fullinertia=_fmt(
+                [i_body[0, 0], i_body[1, 1], i_body[2, 2], i_body[0, 1], i_body[0, 2], i_body[1, 2]]))
+            body.insert(0, inertial)
+    payload = changes.get("payload")
+    if payload is not None and payload[0] > 0:
+        last = parents[root.find(f".//joint[@name='{sim.joint_names[-1]}']")]
+        b = int(model.jnt_bodyid[len(sim.joint_names) - 1])
+        xb, rb = np.array(data.xpos[b]), np.array(data.xmat[b]).reshape(3, 3)
+        tool = rb.T @ (pos[0, 6] - xb)
+        body = ET.SubElement(last, "body", name="payload", pos=_fmt(tool), quat=_fmt(quaternion(np.eye(3))))
+        ET.SubElement(body, "inertial", pos="0 0 0", mass=f"{payload[0]:.12g}",
+                      diaginertia=_fmt(np.full(3, 1e-6 * payload[0])))
+    for line in reversed(list(notes)):
+        root.insert(0, ET.Comment(" " + line.replace("--", "- -") + " "))
+    ET.indent(tree)
+    return '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
+def _urdf_text(sim, changes: dict, notes) -> str:
+    tree = _parse(sim.path)
+    root = tree.getroot()
+    for i, name in enumerate(sim.joint_names):
+        joint = root.find(f"joint[@name='{name}']")
+        dyn = joint.find("dynamics")
+        if dyn is None:
+            dyn = ET.SubElement(joint, "dynamics")
+        dyn.set("damping", f"{max(sim.damping[i] + changes['damping'][i], 0.0):.12g}")
+        dyn.set("friction", f"{max(sim.friction[i] + changes['frictionloss'][i], 0.0):.12g}")
+    for line in reversed(list(notes)):
+        root.insert(0, ET.Comment(" " + line.replace("--", "- -") + " "))
+    ET.indent(tree)
+    return '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
+def unrealisable_links(sim, spec, changes: dict) -> list[int]:
+    """0-based links whose mass/CoM correction, with the inertia about the joint frame kept (as
+    the correction's columns assume), leaves no real mass distribution (inertia about the new CoM
+    not positive semi-definite): such a correction cannot be written."""
+    from urident.model.kinematics import frame_poses
+
+    if sim.fmt != "mjcf":
+        return []
+    from urident.sim.mujoco_model import import_mujoco
+
+    mj = import_mujoco()
+    model = sim.handle
+    data = mj.MjData(model)
+    mj.mj_kinematics(model, data)
+    _, pos = frame_poses(spec, np.zeros((1, 6)))
+    rot, _ = frame_poses(spec, np.zeros((1, 6)))
+    out = []
+    for i in range(len(sim.joint_names)):
+        dm, dh = changes["mass"][i], changes["first_moment"][i]
+        if dm == 0 and not np.any(dh != 0):
+            continue
+        b = int(model.jnt_bodyid[i])
+        m = float(model.body_mass[b])
+        com = np.array(data.xipos[b])
+        ri = np.array(data.ximat[b]).reshape(3, 3)
+        about_k = ri @ np.diag(model.body_inertia[b]) @ ri.T + m * _shift(com - pos[0, i])
+        mass = m + dm
+        if not mass > 0:
+            out.append(i)
+            continue
+        new_com = pos[0, i] + (m * (com - pos[0, i]) + rot[0, i] @ dh) / mass
+        if np.linalg.eigvalsh(about_k - mass * _shift(new_com - pos[0, i])).min() < 0:
+            out.append(i)
+    return out
+
+
+def write_corrected(sim, spec, changes: dict, path: str | Path, *, notes=(), overwrite: bool = False) -> Path:
+    """Write ``sim`` with ``changes`` (:func:`urident.gap.sim_baseline.corrections`) to ``path``."""
+    from urident.fileio import write_text_atomic
+
+    text = _mjcf_text(sim, spec, changes, notes) if sim.fmt == "mjcf" else _urdf_text(sim, changes, notes)
+    path = Path(path)
+    write_text_atomic(path, text, fsync=False, overwrite=overwrite)
+    return path
