@@ -7,8 +7,9 @@ from __future__ import annotations
 def format_report(res, top: int = 12) -> str:
     lines = []
     b, f = res.baseline_rms, res.final_rms
-    lines.append(f"Sim-to-real gap, robot {res.robot}: baseline {res.model.method.upper()} "
-                 f"({res.model.model.friction_summary()}), "
+    summary = getattr(res.model, "summary", None)  # a simulator model describes itself
+    baseline = summary() if summary else f"{res.model.method.upper()} ({res.model.model.friction_summary()})"
+    lines.append(f"Sim-to-real gap, robot {res.robot}: baseline {baseline}, "
                  f"{res.ident.n} identification / {res.valid.n} validation samples")
     lines.append("")
     lines.append("Where (validation residual, measured - predicted):")

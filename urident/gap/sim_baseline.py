@@ -50,6 +50,10 @@ class SimBaseline:
     fmt: str
     path: str
 
+    def summary(self) -> str:
+        """The baseline in the report's first line."""
+        return f"{self.method}, as it is, through its own inverse dynamics"
+
 
 class SimCandidate(Candidate):
     def magnitude(self, beta, spec=None) -> dict:
