@@ -19,6 +19,7 @@ COMMANDS = (
     "check_trajectory",
     "run",
     "identify",
+    "payload",
     "validate",
     "gap",
     "view",

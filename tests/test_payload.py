@@ -1,0 +1,124 @@
+"""Payload identification on an identified arm (issue 17): ``urident payload``, the payload file,
+predicting with a payload, and the bad inputs that must be one line and exit 2.
+
+Data: offline simulations (``urident simulate``) of the UR5 pair in ``experiments/``, the arm
+identified without a load, the loaded run carrying a ``payload_error`` of known mass and centre
+of mass."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from urident.cli.main import main
+from urident.ident.payload import Payload, flange_map
+from urident.ident.payload_file import load_payload, save_payload
+from urident.model import load_robot
+from urident.model.parameters import body_params
+
+ROOT = Path(__file__).resolve().parent.parent
+MASS, COM = 2.0, [0.01, -0.02, 0.06]
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    d = tmp_path_factory.mktemp("payload")
+    effects = d / "effects_load.yaml"
+    effects.write_text(yaml.safe_dump({"effects": [{"name": "payload_error", "mass_kg": MASS,
+                                                    "offset_m": COM}]}))
+    traj = yaml.safe_load((ROOT / "experiments" / "ur5_valid.yaml").read_text())
+    for key in ("a_rad_s", "b_rad_s"):   # the wrist joints 4-6 held still
+        for j in (3, 4, 5):
+            traj["trajectory"][key][j] = [0.0] * len(traj["trajectory"][key][j])
+    for j in (3, 4, 5):
+        traj["trajectory"]["q_start_rad"][j] = traj["trajectory"]["q0_rad"][j]
+    still = d / "still_traj.yaml"
+    still.write_text(yaml.safe_dump(traj))
+    for args in (["--trajectory", str(ROOT / "experiments/ur5_ident.yaml"), "--out", str(d / "arm.csv"), "--seed", "1"],
+                 ["--trajectory", str(ROOT / "experiments/ur5_valid.yaml"), "--out", str(d / "load.csv"),
+                  "--effects", str(effects), "--seed", "2"],
+                 ["--trajectory", str(still), "--out", str(d / "still.csv"), "--effects", str(effects)]):
+        assert main(["simulate", *args]) == 0
+    assert main(["identify", str(d / "arm.csv"), "--robot", "ur5", "--out", str(d / "arm_params.yaml")]) == 0
+    return d
+
+
+def test_flange_map_matches_the_tool_frame():
+    spec = load_robot("ur10e")
+    inertia = np.array([[0.02, 0.001, -0.002], [0.001, 0.03, 0.0005], [-0.002, 0.0005, 0.01]])
+    p = Payload("ur10e", 3.0, [0.02, -0.01, 0.08], inertia)
+    r, t = spec.tool_rotation, spec.tool_xyz
+    expected = body_params(3.0, t + r @ p.com_m, r @ inertia @ r.T)
+    np.testing.assert_allclose(p.body_params(spec), expected, atol=1e-12)
+    np.testing.assert_allclose(flange_map(spec) @ p.flange_vector, expected, atol=1e-12)
+
+
+def test_payload_identifies_mass_and_centre_of_mass(runs, capsys):
+    out, js = runs / "p.yaml", runs / "p.json"
+    capsys.readouterr()
+    assert main(["payload", str(runs / "load.csv"), "--params", str(runs / "arm_params.yaml"),
+                 "--out", str(out), "--json-out", str(js)]) == 0
+    text = capsys.readouterr().out
+    assert "set_target_payload(" in text and "PolyScope" in text and "identifiable:" in text
+    data = json.loads(js.read_text())
+    for key in ("mass_kg", "com_m", "inertia_kg_m2", "sigma", "identifiable"):
+        assert key in data
+    assert abs(data["mass_kg"] - MASS) < 0.02 * MASS
+    assert np.max(np.abs(np.array(data["com_m"]) - COM)) < 0.003
+    assert {"m", "mcx", "mcy", "mcz"} <= set(data["identifiable"])
+    assert set(data["sigma"]) >= {"mass_kg", "com_m", "inertia_kg_m2"}
+    assert data["fit"]["e_n_with_payload"] < 0.5 * data["fit"]["e_n_arm_alone"]
+    p = load_payload(out, load_robot("ur5"))
+    assert abs(p.mass_kg - data["mass_kg"]) < 1e-12
+    assert np.all(np.linalg.eigvalsh(p.inertia_kg_m2) >= -1e-9)
+
+
+def test_payload_refuses_an_existing_output(runs, capsys):
+    out = runs / "exists.yaml"
+    out.write_text("x")
+    assert main(["payload", str(runs / "load.csv"), "--params", str(runs / "arm_params.yaml"),
+                 "--out", str(out)]) == 2
+
+
+def _one_line_exit2(capsys, argv, needle):
+    capsys.readouterr()
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("urident: error:") and "\n" not in err and "Traceback" not in err
+    assert needle in err, err
+
+
+def test_no_wrist_motion_is_bad_input(runs, capsys):
+    _one_line_exit2(capsys, ["payload", str(runs / "still.csv"), "--params", str(runs / "arm_params.yaml"),
+                             "--out", str(runs / "x.yaml")], "wrist")
+
+
+def test_params_without_base_parameters_is_bad_input(runs, capsys):
+    bad = runs / "nobase.yaml"
+    data = yaml.safe_load((runs / "arm_params.yaml").read_text())
+    del data["base_parameters"]
+    bad.write_text(yaml.safe_dump(data))
+    _one_line_exit2(capsys, ["payload", str(runs / "load.csv"), "--params", str(bad),
+                             "--out", str(runs / "x.yaml")], "base_parameters")
+
+
+def test_bad_payload_files(tmp_path):
+    from urident.ident.payload import PayloadError
+
+    p = tmp_path / "p.yaml"
+    save_payload(Payload("ur10e", 1.0, [0, 0, 0.05], np.eye(3) * 1e-3), p)
+    assert load_payload(p, load_robot("ur10e")).mass_kg == 1.0
+    with pytest.raises(PayloadError, match="robot"):
+        load_payload(p, load_robot("ur5"))
+    data = yaml.safe_load(p.read_text())
+    for key, value, needle in (("mass_kg", 0.0, "mass_kg"), ("mass_kg", -1.0, "mass_kg"),
+                               ("com_m", [0, 0], "com_m"), ("surprise", 1, "surprise"),
+                               ("inertia_kg_m2", [[1, 0, 0], [0, -1, 0], [0, 0, 1]], "inertia")):
+        bad = dict(data, **{key: value})
+        p.write_text(yaml.safe_dump(bad))
+        with pytest.raises(PayloadError, match=needle):
+            load_payload(p)
