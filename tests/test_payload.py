@@ -41,6 +41,8 @@ def runs(tmp_path_factory):
     for args in (["--trajectory", str(ROOT / "experiments/ur5_ident.yaml"), "--out", str(d / "arm.csv"), "--seed", "1"],
                  ["--trajectory", str(ROOT / "experiments/ur5_valid.yaml"), "--out", str(d / "load.csv"),
                   "--effects", str(effects), "--seed", "2"],
+                 ["--trajectory", str(ROOT / "experiments/ur5_ident.yaml"), "--out", str(d / "load_ident.csv"),
+                  "--effects", str(effects), "--seed", "3"],
                  ["--trajectory", str(still), "--out", str(d / "still.csv"), "--effects", str(effects)]):
         assert main(["simulate", *args]) == 0
     assert main(["identify", str(d / "arm.csv"), "--robot", "ur5", "--out", str(d / "arm_params.yaml")]) == 0
@@ -122,3 +124,83 @@ def test_bad_payload_files(tmp_path):
         p.write_text(yaml.safe_dump(bad))
         with pytest.raises(PayloadError, match=needle):
             load_payload(p)
+
+
+def _validate(runs, capsys, *extra):
+    js = runs / f"val{len(list(runs.glob('val*.json')))}.json"
+    assert main(["validate", str(runs / "load.csv"), "--params", str(runs / "arm_params.yaml"),
+                 "--json-out", str(js), *extra]) == 0
+    return json.loads(js.read_text())
+
+
+def test_validate_view_and_gap_with_a_payload(runs, capsys):
+    from urident.ident import load_params, predict_recordings
+    from urident.ident.payload import Payload
+    from urident.logs import load_log
+
+    spec = load_robot("ur5")
+    true = runs / "true_payload.yaml"
+    save_payload(Payload("ur5", MASS, COM, np.zeros((3, 3))), true)
+    alone = _validate(runs, capsys)
+    loaded = _validate(runs, capsys, "--payload", str(true))
+    assert loaded["payload"] == str(true)
+    assert loaded["e_n"] < 0.2 * alone["e_n"]
+    # the library path adds exactly the payload's torque
+    params = load_params(runs / "arm_params.yaml")
+    rec = load_log(runs / "load.csv")
+    p0 = predict_recordings(params, rec, spec)
+    p1 = predict_recordings(params, rec, spec, payload=load_payload(true, spec))
+    from urident.ident.payload import payload_torque
+
+    np.testing.assert_allclose(p1.tau_predicted - p0.tau_predicted,
+                               payload_torque(spec, load_payload(true), p0.data.q, p0.data.qd, p0.data.qdd),
+                               atol=1e-9)
+    rrd = runs / "view.rrd"
+    capsys.readouterr()
+    assert main(["view", str(runs / "load.csv"), "--params", str(runs / "arm_params.yaml"),
+                 "--payload", str(true), "--save", str(rrd)]) == 0
+    e_view = float(capsys.readouterr().out.split("e_N = ")[1].split(",")[0])
+    assert abs(e_view - loaded["e_n"]) < 1e-4
+    # a payload file for another robot is refused in one line
+    other = runs / "ur10e_payload.yaml"
+    save_payload(Payload("ur10e", MASS, COM, np.zeros((3, 3))), other)
+    _one_line_exit2(capsys, ["validate", str(runs / "load.csv"), "--params", str(runs / "arm_params.yaml"),
+                             "--payload", str(other)], "ur10e")
+    zero = runs / "zero_payload.yaml"
+    zero.write_text(true.read_text().replace(f"mass_kg: {MASS}", "mass_kg: 0.0"))
+    _one_line_exit2(capsys, ["view", str(runs / "load.csv"), "--params", str(runs / "arm_params.yaml"),
+                             "--payload", str(zero), "--save", str(runs / "v2.rrd")], "mass_kg")
+
+
+def test_identify_the_arm_from_loaded_runs_with_a_known_payload(runs, capsys):
+    true = runs / "true_payload2.yaml"
+    save_payload(Payload("ur5", MASS, COM, np.zeros((3, 3))), true)
+    out = runs / "arm_from_loaded.yaml"
+    assert main(["identify", str(runs / "load.csv"), "--robot", "ur5", "--out", str(out),
+                 "--payload", str(true)]) == 0
+    naive = runs / "arm_naive.yaml"
+    assert main(["identify", str(runs / "load.csv"), "--robot", "ur5", "--out", str(naive)]) == 0
+    # on the unloaded identification run, the arm identified with the payload removed predicts
+    # as well as the one identified there; the one that ignored the payload does not
+    e = {}
+    for name in ("arm_params", "arm_from_loaded", "arm_naive"):
+        js = runs / f"{name}_on_arm.json"
+        assert main(["validate", str(runs / "arm.csv"), "--params", str(runs / f"{name}.yaml"),
+                     "--json-out", str(js)]) == 0
+        e[name] = json.loads(js.read_text())["e_n"]
+    assert e["arm_from_loaded"] < 2 * e["arm_params"] + 0.01
+    assert e["arm_naive"] > 3 * e["arm_from_loaded"]
+
+
+def test_gap_with_the_known_payload_finds_nothing_left(runs):
+    true = runs / "true_payload3.yaml"
+    save_payload(Payload("ur5", MASS, COM, np.zeros((3, 3))), true)
+    found = {}
+    for name, extra in (("without", []), ("with", ["--payload", str(true)])):
+        js = runs / f"gap_{name}.json"
+        assert main(["gap", "--robot", "ur5", "--ident", str(runs / "load_ident.csv"), "--valid",
+                     str(runs / "load.csv"), "--params", str(runs / "arm_params.yaml"),
+                     "--json-out", str(js), *extra]) == 0
+        found[name] = [f["effect"] for f in json.loads(js.read_text())["findings"]]
+    assert "payload_error" in found["without"]
+    assert found["with"] == []

@@ -38,6 +38,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="rows of the validation logs (overrides --rows for them)")
     p.add_argument("--drive-gains", metavar="G1,...,G6", type=options.drive_gains, default=None,
                    help="N·m per A of motor current (default: the parameters file's or robot file's)")
+    options.add_payload_argument(p, "every log carries it; its torque is removed from the measured torque")
     p.add_argument("--effects", metavar="NAMES", type=options.name_list(_catalogue), default=None,
                    help="comma-separated subset of the catalogue to test (default: all; names as in "
                         "'urident simulate --list-effects')")
@@ -92,7 +93,8 @@ def run(args: argparse.Namespace) -> int:
     drive_gains = None if args.drive_gains is None else np.array(args.drive_gains)
     ident = _load_all(args.ident, args, args.ident_rows, spec.name)
     valid = _load_all(args.valid, args, args.valid_rows, spec.name)
-    result = diagnose(ident, valid, spec, params=params, drive_gains=drive_gains, config=config)
+    result = diagnose(ident, valid, spec, params=params, drive_gains=drive_gains, config=config,
+                      payload=options.load_payload_arg(args, spec))
     print(format_report(result))
     note = spec.nominal_note(None if drive_gains is None else ("inertia_com", "rotor_inertia",
                                                               "viscous_friction", "coulomb_friction"))

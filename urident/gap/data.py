@@ -43,7 +43,7 @@ class GapSet:
 
 
 def build_set(recordings: Sequence, spec, drive_gains=None, config=None, what: str = "logs",
-              params=None) -> GapSet:
+              params=None, payload=None) -> GapSet:
     """Prepare ``recordings`` (each filtered on its own) and cut their auxiliary signals alike;
     ``params``: the baseline parameters whose preprocessing and drive gains to follow."""
     from urident.ident import (PreprocessConfig, concatenate, predict_recordings, prediction_config,
@@ -61,6 +61,10 @@ def build_set(recordings: Sequence, spec, drive_gains=None, config=None, what: s
         prepared = predict_recordings(params, recordings, spec, config=config, drive_gains=drive_gains).data
     else:
         prepared = concatenate([preprocess(rec, spec, config, drive_gains) for rec in recordings])
+    if payload is not None:
+        from urident.ident.payload import without_payload
+
+        prepared = without_payload(spec, payload, prepared)
     run_time, temps, moments = [], [], []
     for rec, prov in zip(recordings, prepared.provenance):
         first, last = prov.samples_used

@@ -137,6 +137,15 @@ def payload_torque(spec, payload: Payload, q, qd, qdd) -> np.ndarray:
     return body_torque(spec, q, qd, qdd, payload.body_params(spec))
 
 
+def without_payload(spec, payload: Payload, data):
+    """Prepared ``data`` with the payload's torque removed from the measured torque (the arm
+    alone; ``identify --payload``, ``gap --payload``)."""
+    from dataclasses import replace
+
+    check_robot(payload, spec)
+    return replace(data, tau=data.tau - payload_torque(spec, payload, data.q, data.qd, data.qdd))
+
+
 def check_robot(payload: Payload, spec, where: str = "payload") -> None:
     if payload.robot != spec.name:
         raise PayloadError(f"{where}: payload identified on robot {payload.robot!r}, not {spec.name!r}")
