@@ -204,3 +204,36 @@ def test_gap_with_the_known_payload_finds_nothing_left(runs):
         found[name] = [f["effect"] for f in json.loads(js.read_text())["findings"]]
     assert "payload_error" in found["without"]
     assert found["with"] == []
+
+
+def test_drive_gains_from_a_known_load(tmp_path, capsys):
+    factors = [1.05, 0.97, 1.08, 1.02, 0.95, 1.1]
+    tk = {"name": "torque_constant_error", "gain_factor": factors}
+    load = {"name": "payload_error", "mass_kg": 4.0, "offset_m": [0.03, 0.0, 0.05]}
+    for name, effects, seed in (("without", [tk], "4"), ("with", [tk, load], "5")):
+        (tmp_path / f"eff_{name}.yaml").write_text(yaml.safe_dump({"effects": effects}))
+        assert main(["simulate", "--trajectory", str(ROOT / "experiments/ur5_ident.yaml"), "--out",
+                     str(tmp_path / f"{name}.csv"), "--effects", str(tmp_path / f"eff_{name}.yaml"),
+                     "--seed", seed]) == 0
+    gains, js = tmp_path / "gains.yaml", tmp_path / "gains.json"
+    assert main(["drive-gains", "--robot", "ur5", "--without", str(tmp_path / "without.csv"), "--with",
+                 str(tmp_path / "with.csv"), "--payload-mass", "4", "--payload-com", "0.03,0,0.05",
+                 "--out", str(gains), "--json-out", str(js)]) == 0
+    data = json.loads(js.read_text())
+    true = np.array(load_robot("ur5").drive_gains) * factors
+    est, sigma = np.array(data["drive_gains"]), np.array(data["sigma"])
+    ok = np.array(data["calibrated"])
+    assert ok[1:5].all()    # the load's gravity torque reaches joints 2-5 strongly
+    assert np.all(np.abs(est[ok] / true[ok] - 1) < 0.01)
+    assert np.all(np.abs(est - true) < 4 * sigma + 0.01 * true)
+    # the gains file works wherever --drive-gains does
+    capsys.readouterr()
+    assert main(["identify", str(tmp_path / "without.csv"), "--robot", "ur5", "--out", str(tmp_path / "p.yaml"),
+                 "--drive-gains", str(gains)]) == 0
+    from urident.ident import load_params
+
+    np.testing.assert_allclose(load_params(tmp_path / "p.yaml").drive_gains, est)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(gains.read_text().replace("format: urident-drive-gains", "format: other"))
+    _one_line_exit2(capsys, ["identify", str(tmp_path / "without.csv"), "--robot", "ur5", "--out",
+                             str(tmp_path / "q.yaml"), "--drive-gains", str(bad)], "--drive-gains")

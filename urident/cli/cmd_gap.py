@@ -36,7 +36,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="rows of the identification logs (overrides --rows for them)")
     p.add_argument("--valid-rows", metavar="FIRST-LAST", type=options.row_range, default=None,
                    help="rows of the validation logs (overrides --rows for them)")
-    p.add_argument("--drive-gains", metavar="G1,...,G6", type=options.drive_gains, default=None,
+    p.add_argument("--drive-gains", metavar="G1,...,G6|GAINS.yaml", type=options.drive_gains, default=None,
                    help="N·m per A of motor current (default: the parameters file's or robot file's)")
     options.add_payload_argument(p, "every log carries it; its torque is removed from the measured torque")
     p.add_argument("--effects", metavar="NAMES", type=options.name_list(_catalogue), default=None,

@@ -71,8 +71,8 @@ def add_preprocess_arguments(p: argparse.ArgumentParser, trim_default: bool = Tr
                    help="keep leading/trailing samples at rest" + ("" if trim_default else " (default)"))
     g.add_argument("--rest-threshold", type=options.nonnegative_float, default=None, metavar="V",
                    help="all |qd| below V [rad/s] counts as rest (default 0.001)")
-    g.add_argument("--drive-gains", type=options.drive_gains, default=None, metavar="G1,...,G6",
-                   help="joint-side drive gains i_G*k [N·m/A] (default: the robot file's)")
+    g.add_argument("--drive-gains", type=options.drive_gains, default=None, metavar="G1,...,G6|GAINS.yaml",
+                   help="joint-side drive gains i_G*k [N·m/A], or a GAINS.yaml of urident drive-gains (default: the robot file's)")
 
 
 _PREPROCESS_OPTIONS = ("filter_hz", "torque_filter_hz", "decimate", "trim_rest", "rest_threshold")

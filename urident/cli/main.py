@@ -20,6 +20,7 @@ COMMANDS = (
     "run",
     "identify",
     "payload",
+    "drive_gains",
     "validate",
     "gap",
     "view",

@@ -138,7 +138,16 @@ def joint_vector(text: str) -> tuple[float, ...]:
 
 
 def drive_gains(text: str) -> tuple[float, ...]:
-    """Six positive joint-side drive gains i_G·k [N·m/A] (``--drive-gains``)."""
+    """Six positive joint-side drive gains i_G·k [N·m/A] (``--drive-gains``): a comma list or a
+    GAINS.yaml of ``urident drive-gains`` (read now: a bad file fails at parse time)."""
+    if "," not in str(text) and str(text).strip().lower().endswith((".yaml", ".yml")):
+        from urident.errors import ConfigError
+        from urident.ident.gains_file import load_gains
+
+        try:
+            return tuple(float(g) for g in load_gains(text)[1])
+        except ConfigError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
     try:
         return parse_numbers(text, N_JOINTS, positive=True)
     except ValueError as exc:
