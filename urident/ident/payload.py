@@ -32,8 +32,9 @@ from urident.errors import ConfigError
 #: Names of the flange-frame ten-vector φ_F (first moments m·c, inertia about the flange origin).
 PAYLOAD_FIELDS = ("m", "mcx", "mcy", "mcz", "Jxx", "Jyy", "Jzz", "Jyz", "Jxz", "Jxy")
 #: A parameter whose σ exceeds its tolerance is reported as not identifiable: mass 5 % (at least
-#: 0.02 kg), first moments 5 mm × mass, inertias about the flange 20 % of half its trace (≥ 1e-4 kg·m²).
-TOLERANCES = {"mass_rel": 0.05, "mass_abs": 0.02, "com_m": 0.005, "inertia_rel": 0.2, "inertia_abs": 1e-4}
+#: 0.02 kg), first moments 5 mm × mass, inertias 15 % of the mean principal inertia about the
+#: centre of mass (≥ 1e-4 kg·m²).
+TOLERANCES = {"mass_rel": 0.05, "mass_abs": 0.02, "com_m": 0.005, "inertia_rel": 0.15, "inertia_abs": 1e-4}
 #: Structural rank threshold on the column-normalised regressor (sine to the span of the others).
 RANK_TOL = 1e-3
 #: |q| range [rad] below which a wrist joint counts as not moving.
@@ -173,11 +174,14 @@ class PayloadEstimate:
 
 def _tolerances(phi: np.ndarray) -> np.ndarray:
     m = max(abs(phi[0]), 0.01)
-    half_trace = max(0.5 * (abs(phi[4]) + abs(phi[5]) + abs(phi[6])), TOLERANCES["inertia_abs"])
+    c = phi[1:4] / m
+    # about the centre of mass: the flange-origin inertia's m·c² part is the first moments' business
+    ic = _tensor(phi[4:10]) - m * (c @ c * np.eye(3) - np.outer(c, c))
+    mean_principal = abs(np.trace(ic)) / 3
     tol = np.empty(10)
     tol[0] = max(TOLERANCES["mass_rel"] * m, TOLERANCES["mass_abs"])
     tol[1:4] = TOLERANCES["com_m"] * m
-    tol[4:10] = max(TOLERANCES["inertia_rel"] * half_trace, TOLERANCES["inertia_abs"])
+    tol[4:10] = max(TOLERANCES["inertia_rel"] * mean_principal, TOLERANCES["inertia_abs"])
     return tol
 
 
@@ -225,9 +229,10 @@ def _ls(a: np.ndarray, y: np.ndarray, free: np.ndarray, fixed: np.ndarray):
     return phi, sigma
 
 
-#: Weight of the prior on the fixed (not identifiable) parameters in the consistent estimate:
-#: they stay at their least-squares values unless the constraints move them.
-FIXED_WEIGHT = 1e6
+#: Weight of the prior on the fixed (not identifiable) parameters in the consistent estimate, per
+#: tolerance²: 100× the data's curvature there at most (σ > tolerance), so they stay at their
+#: least-squares values to ~0.1 tolerance unless the constraints move them.
+FIXED_WEIGHT = 1e2
 
 
 def _consistent(a: np.ndarray, y: np.ndarray, prior: np.ndarray, free: np.ndarray, mass_range,
@@ -243,7 +248,7 @@ def _consistent(a: np.ndarray, y: np.ndarray, prior: np.ndarray, free: np.ndarra
     s = np.maximum(np.abs(prior), 1e-3)
     s[0] = max(abs(prior[0]), 0.1)
     s[1:4] = np.maximum(s[1:4], 1e-3 * s[0])
-    weight = np.where(free, regularisation, FIXED_WEIGHT) / s ** 2
+    weight = np.where(free, regularisation / s ** 2, FIXED_WEIGHT / _tolerances(prior) ** 2)
     phi = cp.Variable(10)
     objective = (cp.sum_squares(r_ @ cp.multiply(col, phi) - z) / noise_var
                  + cp.sum(cp.multiply(weight, cp.square(phi - prior))))
@@ -257,8 +262,12 @@ def _consistent(a: np.ndarray, y: np.ndarray, prior: np.ndarray, free: np.ndarra
     if high is not None:
         cons.append(m <= high)
     problem = cp.Problem(cp.Minimize(objective), cons)
+    import warnings
+
     try:
-        problem.solve(solver=cp.CLARABEL)
+        with warnings.catch_warnings():   # 'optimal_inaccurate' (a point mass is on the cone's edge) is accepted
+            warnings.simplefilter("ignore", UserWarning)
+            problem.solve(solver=cp.CLARABEL)
     except cp.error.SolverError as exc:
         raise ConsistentSolveError(f"consistent payload estimation: solver failed ({exc})") from None
     if problem.status not in ("optimal", "optimal_inaccurate") or phi.value is None:
