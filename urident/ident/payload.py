@@ -13,7 +13,8 @@ Estimation (:func:`estimate_payload`): the arm's parameters fixed, the residual
 τ_measured − τ_arm = Y_6 L φ_F is linear in φ_F (Y_6: the regressor columns of body 6). Which of
 the ten the data excite is decided by a pivoted QR of the column-normalised, joint-weighted
 regressor (a column within 1e-3 of the span of the others carries nothing of its own) and then by
-each parameter's standard deviation against a physical tolerance (:data:`TOLERANCES`); the rest
+each parameter's standard deviation (inflated for the residual's autocorrelation:
+:func:`urident.ident.estimate.correlation_inflation`) against a physical tolerance (:data:`TOLERANCES`); the rest
 are fixed (first moments at 0, inertia at a point mass's) and reported as not identifiable. The
 physically consistent estimate solves the same least squares over all ten with the payload's
 pseudo-inertia ⪰ 0, m in ``mass_range``, a weak prior (the arm's λ) towards the least-squares
@@ -28,6 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from urident.errors import ConfigError
+from urident.ident.estimate import correlation_inflation
 
 #: Names of the flange-frame ten-vector φ_F (first moments m·c, inertia about the flange origin).
 PAYLOAD_FIELDS = ("m", "mcx", "mcy", "mcz", "Jxx", "Jyy", "Jzz", "Jyz", "Jxz", "Jxy")
@@ -221,7 +223,8 @@ def _ls(a: np.ndarray, y: np.ndarray, free: np.ndarray, fixed: np.ndarray):
     x /= scale
     e = af @ x - rhs
     dof = max(len(y) - af.shape[1], 1)
-    cov = np.linalg.pinv((af / scale).T @ (af / scale)) / np.outer(scale, scale) * (e @ e / dof)
+    cov = (np.linalg.pinv((af / scale).T @ (af / scale)) / np.outer(scale, scale) * (e @ e / dof)
+           * correlation_inflation(e))
     phi = fixed.copy()
     phi[free] = x
     sigma = np.full(10, np.nan)

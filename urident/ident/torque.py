@@ -112,5 +112,9 @@ def estimate_drive_gains(spec, run_without, run_with, payload: np.ndarray,
     dof = max(a.shape[0] - a.shape[1], 1)
     zs, as_ = z / scale, a / scale
     m = np.linalg.inv(zs.T @ as_)
-    cov = m @ (zs.T @ zs) @ m.T * (e @ e / dof) / np.outer(scale, scale)
+    from urident.ident.estimate import correlation_inflation
+
+    # per run: a smooth residual (unmodelled effects) carries fewer independent samples than rows
+    inflation = max(correlation_inflation(e[:currents[0].size]), correlation_inflation(e[currents[0].size:]))
+    cov = m @ (zs.T @ zs) @ m.T * (e @ e / dof) / np.outer(scale, scale) * inflation
     return DriveGainEstimate(x[b:], np.sqrt(np.diag(cov))[b:], x[:b])
