@@ -65,7 +65,7 @@ def test_payload_identifies_mass_and_centre_of_mass(runs, capsys):
     assert main(["payload", str(runs / "load.csv"), "--params", str(runs / "arm_params.yaml"),
                  "--out", str(out), "--json-out", str(js)]) == 0
     text = capsys.readouterr().out
-    assert "set_target_payload(" in text and "PolyScope" in text and "identifiable:" in text
+    assert "set_target_payload(" in text and "script manual" in text and "identifiable:" in text
     data = json.loads(js.read_text())
     for key in ("mass_kg", "com_m", "inertia_kg_m2", "sigma", "identifiable"):
         assert key in data

@@ -42,7 +42,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-METHOD = ("joint least squares of the arm's base parameters and six gains on both runs (payload "
+METHOD = ("joint least squares of the arm's base parameters, a constant torque per joint and six gains on both runs (payload "
           "torque known, point mass unless an inertia is given), refined by two instrumental-"
           "variable iterations (instruments: the currents the first fit predicts)")
 
@@ -72,7 +72,8 @@ def run(args: argparse.Namespace) -> int:
         runs.append((data.q, data.qd, data.qdd, data.tau))
     check_wrist_motion(runs[1][0], "--with logs")
     payload = Payload(spec.name, args.payload_mass, args.payload_com, np.zeros((3, 3)))
-    est = estimate_drive_gains(spec, runs[0], runs[1], payload.body_params(spec), reduced=args.reduced)
+    est = estimate_drive_gains(spec, runs[0], runs[1], payload.body_params(spec), reduced=args.reduced,
+                               offset=True)
     data = {"without": list(args.without), "with": list(args.with_), "payload_mass_kg": args.payload_mass,
             "payload_com_m": list(args.payload_com), "robot_file_gains": [float(g) for g in spec.drive_gains]}
     save_gains(args.out, spec.name, est.gains, est.sigma, METHOD, data, overwrite=args.overwrite)

@@ -8,9 +8,11 @@ import sys
 
 from urident.cli import options
 
-POLYSCOPE_NOTE = ("set_target_payload takes the inertia argument (about the centre of mass, flange "
-                  "axes) on PolyScope 5 (e-Series, 5.10 and later, where the function was added) and "
-                  "PolyScope X; older software has only set_payload(m, cog), which ignores the inertia")
+POLYSCOPE_NOTE = ("UR's script manual (software 10.6, e-Series G5 page) documents "
+                  "set_target_payload(m, cog, inertia=[0, 0, 0, 0, 0, 0], transition_time=0): the "
+                  "inertia is optional, about the centre of mass with flange axes, Ixx..Izz >= 0; it "
+                  "replaces the deprecated set_payload(m, cog), which takes no inertia: use that on a "
+                  "controller whose script manual lacks set_target_payload")
 
 
 def mass_range(text: str) -> tuple[float, float]:

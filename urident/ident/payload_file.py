@@ -7,7 +7,8 @@
     mass_kg: 1.234
     com_m: [0.0, 0.0, 0.05]              # flange frame
     inertia_kg_m2: [[..], [..], [..]]    # 3x3 about the centre of mass, flange axes
-    sigma: {mass_kg: .., com_m: [..], inertia_kg_m2: [[..]]}     # optional; null = fixed
+    sigma: {mass_kg: .., com_m: [..], inertia_kg_m2: [[..]]}     # optional; null = fixed; the
+                                         # inertia's σ is that of the estimated entries about the flange origin
     identifiable: [m, mcx, ...]          # optional: parameters the data determined
     urscript: set_target_payload(...)    # informational, not read
     fit: {...}                           # informational, not read
