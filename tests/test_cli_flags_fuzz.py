@@ -30,12 +30,16 @@ BASE = {
     "export": ["p.yaml"],
     "simulate": ["--trajectory", "t.yaml", "--out", "x.csv"],
     "sim-controller": [],
+    "payload": ["x.csv", "--params", "p.yaml", "--out", "pl.yaml"],
+    "drive-gains": ["--robot", "ur5", "--without", "a.csv", "--with", "b.csv", "--payload-mass", "1",
+                    "--out", "g.yaml"],
 }
 # flags holding a path, a robot/preset name, an address or a URL: checked when used, with an
 # error naming the file (tests/test_inputs.py, tests/test_outputs.py)
 FREE_TEXT = {"--robot", "--out", "--out-root", "--trajectory", "--config", "--params", "--urdf",
              "--report", "--png", "--json-out", "--save", "--host", "--effects", "--ident",
-             "--valid", "--rerun", "--bag", "--mjcf", "--name", "--sim", "--write-sim"}
+             "--valid", "--rerun", "--bag", "--mjcf", "--name", "--sim", "--write-sim", "--payload",
+             "--without", "--with", "--tool-capsule-from"}
 # text no validator accepts
 ALWAYS_BAD = ["nan", "inf", "-inf", "NaN", "abc", "", " ", "1e999", "1,2,3,4,5", "0x1g", "1;2"]
 
@@ -114,6 +118,10 @@ def _bad_values(action: argparse.Action) -> st.SearchStrategy[str]:
     if kind == "names":
         return st.one_of(st.sampled_from(["abc", "nan", ",", "x,y"]),
                          st.text(string.ascii_lowercase, min_size=1, max_size=8).map(lambda t: "zz" + t))
+    if kind == "com_vector":
+        return st.one_of(always, st.sampled_from(["1,2", "1,2,3,4", "1,nan,2"]))
+    if kind == "mass_range":
+        return st.one_of(always, st.sampled_from(["2,1", "0,1", "-1,2", "1", "1,nan"]))
     if kind == "_parse_version":
         return st.one_of(always, st.sampled_from(["4.1", "5", "6.0.0", "5.-1", "5.1.2.3.4"]))
     if kind == "_parse_fault":

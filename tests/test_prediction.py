@@ -122,7 +122,9 @@ def test_prediction_follows_the_parameters_file(sample, dahl_params, tmp_path):
     np.testing.assert_allclose(p.data.tau, np.asarray(valid.current) * 1.1 * np.asarray(spec.drive_gains))
     other = predict_recordings(params, valid, config=replace(config, filter_hz=10.0))
     assert np.max(np.abs(other.tau_predicted - p.tau_predicted)) > 1e-3   # the corner matters
-    with pytest.raises(NotImplementedError):
+    from urident.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="Payload"):   # a payload is a urident.ident.payload.Payload
         predict_recordings(params, valid, payload=object())
 
 

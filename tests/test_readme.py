@@ -2,9 +2,10 @@
 
 The commands are read from the README's ```bash blocks. Skipped, each covered elsewhere: the set-up
 line (CI runs it), `pytest` itself, `urident demo` (tests/test_demo.py), `urident excite` (minutes
-of optimisation each; tests/test_excitation.py runs the command), URSim's `docker run`, and
+of optimisation each; tests/test_excitation.py runs the command), URSim's `docker run`, ROS 2's own `ros2` commands, and
 commands that talk to a controller (`--host`, a server started with `&` and its `kill`:
-tests/test_readme_dry_run.py runs that block); so is any command that reads what a skipped command would have written.
+tests/test_readme_dry_run.py runs that block), commands that read a recording of the operator's own
+robot (a `logs/*.csv` the checkout does not ship); so is any command that reads what a skipped command would have written.
 They run in a scratch copy of logs/ and experiments/ beside a link to ../shared, with `/tmp/`
 pointing into the test's own directory, so the checkout is never written.
 """
@@ -25,13 +26,17 @@ from shared_data import shared_data_dir
 
 ROOT = Path(__file__).resolve().parent.parent
 SHARED = shared_data_dir().parent  # the README reads ../shared/data
-OUTPUT_FLAGS = ("--out", "--json-out", "--save", "--urdf", "--png", "--report")
-NOT_HERE = (re.compile(r"^(pip|pytest|docker)\b"), re.compile(r"^urident (demo|excite)\b"),
+OUTPUT_FLAGS = ("--out", "--json-out", "--save", "--urdf", "--png", "--report", "--mjcf", "--write-sim", "--bag")
+NOT_HERE = (re.compile(r"^(pip|pytest|docker|ros2)\b"), re.compile(r"^urident (demo|excite)\b"),
             re.compile(r"--host\b"), re.compile(r"&$"), re.compile(r"^kill\b"))
 
 
+def readme_blocks() -> list[list[tuple[dict, str]]]:
+    return [block_commands(block) for block in bash_blocks()]
+
+
 def readme_commands() -> list[tuple[dict, str]]:
-    return [c for block in bash_blocks() for c in block_commands(block)]
+    return [c for block in readme_blocks() for c in block]
 
 
 def outputs(command: str) -> list[str]:
@@ -40,26 +45,41 @@ def outputs(command: str) -> list[str]:
 
 
 def runnable(commands: list[tuple[dict, str]]) -> tuple[list[tuple[dict, str]], list[str]]:
-    """The commands to run here, and the ones skipped (with what they would have written)."""
+    """The commands of one block to run here, and the ones skipped."""
     keep, skipped, unavailable = [], [], set()
     for env, command in commands:
-        needs_skipped = any(name in command for name in unavailable)
-        if needs_skipped or any(p.search(command) for p in NOT_HERE):
+        words = shlex.split(command)
+        needs_skipped = any(w in unavailable for w in words if w not in outputs(command))
+        own_recording = any(not (ROOT / w).exists() and w not in outputs(command)
+                            for w in words if re.fullmatch(r"logs/[\w.-]+\.csv", w))
+        if needs_skipped or own_recording or any(p.search(command) for p in NOT_HERE):
             skipped.append(command)
             unavailable.update(outputs(command))
         else:
             keep.append((env, command))
+            unavailable.difference_update(outputs(command))
+    return keep, skipped
+
+
+def selected() -> tuple[list[tuple[dict, str]], list[str]]:
+    keep, skipped = [], []
+    for block in readme_blocks():
+        k, s = runnable(block)
+        keep += k
+        skipped += s
     return keep, skipped
 
 
 def test_readme_command_selection_is_what_the_docstring_says():
     commands = readme_commands()
-    keep, skipped = runnable(commands)
+    keep, skipped = selected()
     assert any(c.startswith("urident gap --robot ur10e") for _, c in keep)
     assert any(c.startswith("urident identify logs/sample_ident.csv") for _, c in keep)
     assert all("--host" not in c for _, c in keep)
     # the post-run commands of the operator workflow read the live robot's logs
     assert any(c.startswith("urident identify logs/ident.csv") for c in skipped)
+    assert any(c.startswith("urident payload $D/ur-20_01_31-load.csv") for _, c in keep)
+    assert all("logs/tool.csv" not in c for _, c in keep)
     joined = [c for _, c in commands if "--valid-rows 700-4200" in c]
     assert joined and all("\\" not in c for c in joined)
 
@@ -76,7 +96,7 @@ def test_readme_commands_run_as_written(tmp_path):
     scratch.mkdir()
     env = dict(os.environ)
     env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
-    keep, _ = runnable(readme_commands())
+    keep, _ = selected()
     assert len(keep) >= 10
     for variables, command in keep:
         line = command.replace("/tmp/", f"{scratch}/")

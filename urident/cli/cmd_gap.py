@@ -49,8 +49,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "that does not hold there is marked")
     p.add_argument("--check-rows", metavar="FIRST-LAST", type=options.row_range, default=None,
                    help="rows of the check logs (overrides --rows for them)")
-    p.add_argument("--drive-gains", metavar="G1,...,G6", type=options.drive_gains, default=None,
+    p.add_argument("--drive-gains", metavar="G1,...,G6|GAINS.yaml", type=options.drive_gains, default=None,
                    help="N·m per A of motor current (default: the parameters file's or robot file's)")
+    options.add_payload_argument(p, "every log carries it; its torque is removed from the measured torque")
     p.add_argument("--effects", metavar="NAMES", type=options.name_list(_catalogue), default=None,
                    help="comma-separated subset of the catalogue to test (default: all; names as in "
                         "'urident simulate --list-effects')")
@@ -117,7 +118,8 @@ def run(args: argparse.Namespace) -> int:
     if args.check:
         _refuse_reused(args)
         check_logs = _load_all(args.check, args, args.check_rows, spec.name)
-    result = diagnose(ident, valid, spec, params=params, drive_gains=drive_gains, config=config)
+    result = diagnose(ident, valid, spec, params=params, drive_gains=drive_gains, config=config,
+                      payload=options.load_payload_arg(args, spec))
     print(format_report(result))
     if args.check:
         from urident.gap.check import check_findings, format_check

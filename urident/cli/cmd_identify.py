@@ -71,8 +71,8 @@ def add_preprocess_arguments(p: argparse.ArgumentParser, trim_default: bool = Tr
                    help="keep leading/trailing samples at rest" + ("" if trim_default else " (default)"))
     g.add_argument("--rest-threshold", type=options.nonnegative_float, default=None, metavar="V",
                    help="all |qd| below V [rad/s] counts as rest (default 0.001)")
-    g.add_argument("--drive-gains", type=options.drive_gains, default=None, metavar="G1,...,G6",
-                   help="joint-side drive gains i_G*k [N·m/A] (default: the robot file's)")
+    g.add_argument("--drive-gains", type=options.drive_gains, default=None, metavar="G1,...,G6|GAINS.yaml",
+                   help="joint-side drive gains i_G*k [N·m/A], or a GAINS.yaml of urident drive-gains (default: the robot file's)")
 
 
 _PREPROCESS_OPTIONS = ("filter_hz", "torque_filter_hz", "decimate", "trim_rest", "rest_threshold")
@@ -114,6 +114,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     options.add_overwrite_argument(p, "existing parameters, URDF, report and plot files")
     add_model_arguments(p)
     add_preprocess_arguments(p, trim_default=True)
+    options.add_payload_argument(p, "the logs carry it; its torque is removed and the arm alone identified")
     add_log_arguments(p)
     options.add_rerun_arguments(p, "fit")
     p.set_defaults(func=run)
@@ -193,6 +194,11 @@ def run(args: argparse.Namespace) -> int:
     gains = resolve_drive_gains(spec, args.drive_gains)
     recordings = [load_log_from_args(path, args, robot=spec.name) for path in args.logs]
     data = prepare(recordings, spec, config, gains)
+    payload = options.load_payload_arg(args, spec)
+    if payload is not None:
+        from urident.ident.payload import without_payload
+
+        data = without_payload(spec, payload, data)
     cv_text = ""
     if select:
         from urident.ident.crossval import select_dahl_rad

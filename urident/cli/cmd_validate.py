@@ -28,6 +28,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--png", metavar="DIR", default=None, help="write measured-vs-predicted plots here")
     options.add_overwrite_argument(p, "existing JSON and plot files")
     add_preprocess_arguments(p, trim_default=False)
+    options.add_payload_argument(p, "its torque adds to the arm's prediction")
     add_log_arguments(p)
     options.add_rerun_arguments(p, "comparison")
     p.set_defaults(func=run)
@@ -50,12 +51,13 @@ def run(args: argparse.Namespace) -> int:
     for path, m in models:
         if m.robot != spec.name:
             raise ConfigError(f"{path}: parameters are for robot {m.robot!r}, validating on {spec.name!r}")
+    payload = options.load_payload_arg(args, spec)
     recordings = [load_log_from_args(p, args, robot=spec.name) for p in args.logs]
     results = []
     for path, m in models:
         check_compatible(m, spec, str(path))
         config = prediction_config(m, **preprocess_overrides(args))
-        prediction = predict_recordings(m, recordings, spec, config=config,
+        prediction = predict_recordings(m, recordings, spec, config=config, payload=payload,
                                         drive_gains=args.drive_gains or None)
         results.append((path, prediction.validation()))
     for path, r in results:
@@ -68,12 +70,12 @@ def run(args: argparse.Namespace) -> int:
         if note:  # measured torques = the robot file's drive gains × current
             print(note)
     if args.json_out:
-        payload = dict(results[0][1].as_dict(), params=str(results[0][0]))
+        report = dict(results[0][1].as_dict(), params=str(results[0][0]), payload=args.payload)
         if len(results) > 1:
-            payload["results"] = [dict(r.as_dict(), params=str(p)) for p, r in results]
+            report["results"] = [dict(r.as_dict(), params=str(p)) for p, r in results]
         from urident.fileio import write_text_atomic
 
-        write_text_atomic(args.json_out, json.dumps(payload, indent=2) + "\n", overwrite=args.overwrite)
+        write_text_atomic(args.json_out, json.dumps(report, indent=2) + "\n", overwrite=args.overwrite)
     _to_rerun(args, spec, results)
     if args.png:
         from urident.viz.plots import plot_torques

@@ -32,6 +32,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     from urident.logs import add_log_arguments
 
     add_preprocess_arguments(p, trim_default=False)
+    options.add_payload_argument(p, "its torque adds to the arm's prediction")
     p.add_argument("--cutoff", dest="filter_hz", type=options.positive_float, default=None,
                    help=argparse.SUPPRESS)
     add_log_arguments(p)
@@ -58,6 +59,7 @@ def run(args: argparse.Namespace) -> int:
     params = load_prediction_params(args.params, spec) if args.params else nominal_parameters(spec)
     config = prediction_config(params, **preprocess_overrides(args))
     prediction = predict_recordings(params, [recording], spec, config=config,
+                                    payload=options.load_payload_arg(args, spec),
                                     drive_gains=args.drive_gains or None)  # errors before a viewer opens
     result = prediction.validation()
 

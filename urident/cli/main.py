@@ -19,6 +19,8 @@ COMMANDS = (
     "check_trajectory",
     "run",
     "identify",
+    "payload",
+    "drive_gains",
     "validate",
     "gap",
     "export",

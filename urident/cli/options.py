@@ -138,7 +138,16 @@ def joint_vector(text: str) -> tuple[float, ...]:
 
 
 def drive_gains(text: str) -> tuple[float, ...]:
-    """Six positive joint-side drive gains i_G·k [N·m/A] (``--drive-gains``)."""
+    """Six positive joint-side drive gains i_G·k [N·m/A] (``--drive-gains``): a comma list or a
+    GAINS.yaml of ``urident drive-gains`` (read now: a bad file fails at parse time)."""
+    if "," not in str(text) and str(text).strip().lower().endswith((".yaml", ".yml")):
+        from urident.errors import ConfigError
+        from urident.ident.gains_file import load_gains
+
+        try:
+            return tuple(float(g) for g in load_gains(text)[1])
+        except ConfigError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
     try:
         return parse_numbers(text, N_JOINTS, positive=True)
     except ValueError as exc:
@@ -344,3 +353,23 @@ def open_recording_from_args(args: argparse.Namespace, app_id: str, blueprint: A
 def rerun_destination(args: argparse.Namespace) -> str:
     save = getattr(args, "rerun_save", None)
     return f"saved to {save}" if save else "sent to the viewer"
+
+
+# -- payload ------------------------------------------------------------------------------------
+
+def add_payload_argument(parser: argparse.ArgumentParser, what: str = "predict with it") -> None:
+    """``--payload PAYLOAD.yaml`` (from ``urident payload``): a tool on the flange."""
+    parser.add_argument("--payload", metavar="PAYLOAD.yaml", default=None,
+                        help=f"a tool mounted on the flange (file of 'urident payload'): {what}")
+
+
+def load_payload_arg(args: argparse.Namespace, spec):
+    """The ``--payload`` file for robot ``spec``, or None; one-line error naming the file."""
+    path = getattr(args, "payload", None)
+    if path is None:
+        return None
+    from urident.ident.payload_file import load_payload
+
+    payload = load_payload(path, spec)
+    print(f"payload {path}: {payload.describe()}", file=__import__("sys").stderr)
+    return payload

@@ -42,10 +42,11 @@ class GapSet:
 
 
 def build_set(recordings: Sequence, spec, drive_gains=None, config=None, what: str = "logs",
-              params=None) -> GapSet:
+              params=None, payload=None) -> GapSet:
     """Prepare ``recordings`` (each, and each gap-free piece of one, filtered on its own) and cut
     their auxiliary signals alike; ``params``: the baseline parameters whose preprocessing and
-    drive gains to follow (through the one prediction path)."""
+    drive gains to follow (through the one prediction path); ``payload``: a known payload
+    whose torque is removed from the measured torque."""
     from urident.ident import PreprocessConfig, predict_recordings, prediction_config
     from urident.ident.preprocess import concatenate, preprocess_pieces
 
@@ -67,6 +68,10 @@ def build_set(recordings: Sequence, spec, drive_gains=None, config=None, what: s
                 parts.append(p)
                 pieces.append((k, offset))
         prepared = concatenate(parts)
+    if payload is not None:
+        from urident.ident.payload import without_payload
+
+        prepared = without_payload(spec, payload, prepared)
     run_time, temps, moments = [], [], []
     for (k, offset), prov in zip(pieces, prepared.provenance):
         rec = recordings[k]

@@ -29,14 +29,16 @@ from urident.gap.where import describe_unexplained, describe_where
 
 
 def diagnose(ident_recordings: Sequence, valid_recordings: Sequence, spec, *, params=None,
-             drive_gains=None, config: GapConfig | None = None, preprocess=None) -> GapResult:
+             drive_gains=None, config: GapConfig | None = None, preprocess=None,
+             payload=None) -> GapResult:
     """Diagnose from recordings only (``urident.logs.Recording``) and the robot ``spec``.
-    ``params``: a baseline IdentifiedModel (e.g. from ``load_params``) instead of identifying it."""
+    ``params``: a baseline IdentifiedModel (e.g. from ``load_params``) instead of identifying it;
+    ``payload``: a known tool on the flange (its torque is removed from the measured torque)."""
     config = config or GapConfig()
     if drive_gains is None and params is not None:
         drive_gains = params.drive_gains
-    ident = build_set(ident_recordings, spec, drive_gains, preprocess, "identification logs", params)
-    valid = build_set(valid_recordings, spec, drive_gains, preprocess, "validation logs", params)
+    ident = build_set(ident_recordings, spec, drive_gains, preprocess, "identification logs", params, payload)
+    valid = build_set(valid_recordings, spec, drive_gains, preprocess, "validation logs", params, payload)
     return diagnose_prepared(spec, ident, valid, params=params, config=config)
 
 

@@ -68,3 +68,17 @@ def joint_weights(w: np.ndarray, y: np.ndarray, x: np.ndarray) -> np.ndarray:
     std = np.sqrt(np.mean(e ** 2, axis=0))
     std = np.maximum(std, 1e-9 * max(std.max(), 1e-300))
     return 1.0 / std
+
+
+def correlation_inflation(e: np.ndarray) -> float:
+    """Variance factor (1 + ρ)/(1 − ρ) of an AR(1) residual with lag-1 autocorrelation ρ (per
+    joint, the largest): unmodelled effects make the residual smooth, and white-noise σ would then
+    call parameters determined that are not. ``e``: stacked residual, row 6k + j."""
+    r = np.asarray(e, dtype=float).reshape(-1, 6)
+    if len(r) < 3:
+        return 1.0
+    r = r - r.mean(axis=0)
+    den = np.sum(r * r, axis=0)
+    rho = np.where(den > 0, np.sum(r[1:] * r[:-1], axis=0) / np.where(den > 0, den, 1.0), 0.0)
+    rho = float(np.clip(rho.max(), 0.0, 0.999))
+    return (1 + rho) / (1 - rho)

@@ -21,7 +21,9 @@ across batches; it gives the same torques as ``predict_recordings(..., causal=Tr
 log. ``urident validate``, ``gap --params``, ``view``, ``run``'s live view and the demo (through
 those commands) all predict here; ``urident.viz`` only draws the arrays.
 
-``payload`` is reserved for a payload attached to the tool; not supported yet.
+``payload`` (:class:`urident.ident.payload.Payload`, e.g. from ``load_payload``): a tool on the
+flange whose torque (:func:`urident.ident.payload.payload_torque`, rigid on body 6) adds to the
+arm's prediction; the arm's parameters are of the arm without it.
 """
 
 from __future__ import annotations
@@ -65,6 +67,7 @@ class Prediction:
     config: PreprocessConfig
     causal: bool = False
     pieces: tuple[tuple[int, int], ...] = ()  # per part of ``data``: (recording index, first sample)
+    payload: Any = None           # the Payload predicted with, if any
 
     @property
     def residual(self) -> np.ndarray:
@@ -89,9 +92,20 @@ class Prediction:
         return np.concatenate(index) if index else np.zeros(0, dtype=int)
 
 
-def _check_payload(payload) -> None:
-    if payload is not None:
-        raise NotImplementedError("predicting with a payload is not supported yet")
+def _check_payload(payload, spec) -> None:
+    if payload is None:
+        return
+    from urident.ident.payload import Payload, check_robot
+
+    if not isinstance(payload, Payload):
+        raise ConfigError(f"payload must be a Payload (urident.ident.payload), not {type(payload).__name__}")
+    check_robot(payload, spec)
+
+
+def _payload_torque(spec, payload, q, qd, qdd) -> np.ndarray:
+    from urident.ident.payload import payload_torque
+
+    return payload_torque(spec, payload, q, qd, qdd)
 
 
 def _spec_for(params: IdentifiedModel, spec):
@@ -109,9 +123,9 @@ def predict_recordings(params: IdentifiedModel, recordings, spec=None, *, payloa
     its own) as ``params`` prescribe and predict their torques (module doc). ``spec``: the robot
     (default: the one ``params`` name); ``config``: the whole preprocessing instead of
     :func:`prediction_config`; ``drive_gains``: instead of the parameters'."""
-    _check_payload(payload)
     spec = _spec_for(params, spec)
     check_compatible(params, spec)
+    _check_payload(payload, spec)
     recordings = [recordings] if hasattr(recordings, "current") else list(recordings)
     if not recordings:
         raise ConfigError("no recording to predict")
@@ -123,7 +137,10 @@ def predict_recordings(params: IdentifiedModel, recordings, spec=None, *, payloa
             parts.append(p)
             pieces.append((k, offset))
     data = concatenate(parts)
-    return Prediction(data, predict_prepared(params, spec, data), params, config, causal, tuple(pieces))
+    tau = predict_prepared(params, spec, data)
+    if payload is not None:
+        tau = tau + _payload_torque(spec, payload, data.q, data.qd, data.qdd)
+    return Prediction(data, tau, params, config, causal, tuple(pieces), payload)
 
 
 class StreamPredictor:
@@ -132,9 +149,10 @@ class StreamPredictor:
     parameters' drive gains × current, friction states carried from batch to batch."""
 
     def __init__(self, params: IdentifiedModel, spec=None, *, payload=None, drive_gains=None):
-        _check_payload(payload)
         self.spec = _spec_for(params, spec)
         check_compatible(params, self.spec)
+        _check_payload(payload, self.spec)
+        self.payload = payload
         self.params = params
         self.gains = resolve_drive_gains(self.spec,
                                          params.drive_gains if drive_gains is None else drive_gains)
@@ -160,6 +178,8 @@ class StreamPredictor:
             pred = predict(self.params, self.spec, np.vstack([lq, q]), np.vstack([lqd, qd]),
                            np.vstack([lqdd, qdd]), None, np.r_[lt, t], self._state)[1:]
         self._last = (t[-1], q[-1], qd[-1], qdd[-1])
+        if self.payload is not None:
+            pred = pred + _payload_torque(self.spec, self.payload, q, qd, qdd)
         return qdd, tau, pred
 
 

@@ -118,19 +118,24 @@ def payload_torque(spec, q, qd, qdd, payload: np.ndarray) -> np.ndarray:
 
 
 def estimate_drive_gains(spec, run_without, run_with, payload: np.ndarray,
-                         reduced: bool = False, friction_eps: float = 0.01) -> DriveGainEstimate:
+                         reduced: bool = False, friction_eps: float = 0.01,
+                         offset: bool = False) -> DriveGainEstimate:
     """Drive gains from two runs (module doc). ``run_without``/``run_with`` are ``(q, qd, qdd,
     current)`` tuples of (N, 6) arrays; ``payload`` the payload's ten parameters about K_6
-    (:func:`payload_params`)."""
+    (:func:`payload_params`); ``offset``: a constant torque per joint in the arm model (a
+    current-sensor offset or asymmetric friction, the same in both runs)."""
     from urident.model import regressor
     from urident.model.base import base_parameters
 
     base = base_parameters(spec, reduced)
-    b = base.n_base
+    b = base.n_base + (6 if offset else 0)
     wbs, currents, rhs = [], [], []
     for k, run in enumerate((run_without, run_with)):
         q, qd, qdd, current = (np.asarray(x, dtype=float) for x in run)
-        wbs.append(base.columns(regressor(spec, q, qd, qdd, friction_eps)))
+        wb = base.columns(regressor(spec, q, qd, qdd, friction_eps))
+        if offset:
+            wb = np.hstack([wb, np.tile(np.eye(6), (q.shape[0], 1))])
+        wbs.append(wb)
         currents.append(current)
         rhs.append(np.zeros(current.size) if k == 0
                    else -payload_torque(spec, q, qd, qdd, payload).reshape(-1))
@@ -163,5 +168,9 @@ def estimate_drive_gains(spec, run_without, run_with, payload: np.ndarray,
     dof = max(a.shape[0] - a.shape[1], 1)
     zs, as_ = z / scale, a / scale
     m = np.linalg.inv(zs.T @ as_)
-    cov = m @ (zs.T @ zs) @ m.T * (e @ e / dof) / np.outer(scale, scale)
+    from urident.ident.estimate import correlation_inflation
+
+    # per run: a smooth residual (unmodelled effects) carries fewer independent samples than rows
+    inflation = max(correlation_inflation(e[:currents[0].size]), correlation_inflation(e[currents[0].size:]))
+    cov = m @ (zs.T @ zs) @ m.T * (e @ e / dof) / np.outer(scale, scale) * inflation
     return DriveGainEstimate(x[b:], np.sqrt(np.diag(cov))[b:], x[:b])

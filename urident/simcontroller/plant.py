@@ -138,6 +138,8 @@ class Plant:
 
         self.temperatures = np.full(N_JOINTS, self.ambient_temperature_c + 5.0)
         self.tau_model = np.zeros(N_JOINTS)
+        self.target_moment = np.zeros(N_JOINTS)      # the model torque with the declared payload
+        self.declared_payload: np.ndarray | None = None   # ten parameters about K_6 (set_target_payload)
         self.tau = np.zeros(N_JOINTS)
         self.current = np.zeros(N_JOINTS)            # true motor current [A]
         self.target_current = np.zeros(N_JOINTS)     # model current (feed-forward) [A]
@@ -231,6 +233,28 @@ class Plant:
         # about ω²·dt·q̇/2, and the torque (the current) belongs to the motion over the period.
         return self._servo_target + e1, qd1, acc
 
+    def declare_payload(self, mass_kg: float, cog_m, inertia6=None) -> None:
+        """A payload declared to the controller (``set_target_payload`` / ``setPayload``): mass,
+        centre of mass in the flange frame, [Ixx, Iyy, Izz, Ixy, Ixz, Iyz] about it. It changes
+        the target moment and target current only; the physics is the effects' business."""
+        from urident.model.parameters import TOOL_BODY
+        from urident.simcontroller.effects.dynamics import inertia_matrix, payload_params
+
+        i6 = [0.0] * 6 if inertia6 is None else list(inertia6)
+        if mass_kg <= 0:
+            self.declared_payload = None
+            return
+        p78 = payload_params(self.spec, float(mass_kg), np.asarray(cog_m, float),
+                             inertia_matrix(i6[:3], i6[3:]))
+        self.declared_payload = p78[TOOL_BODY]
+
+    def _declared_torque(self, q, qd, qdd) -> np.ndarray:
+        from urident.model import regressor_blocks
+        from urident.model.parameters import TOOL_BODY
+
+        blocks = regressor_blocks(self.spec, q[None, :], qd[None, :], qdd[None, :])
+        return blocks[0][:, TOOL_BODY] @ self.declared_payload
+
     def _update_torques(self) -> None:
         t, q, qd, qdd = self.t, self.q, self.qd, self.qdd
         tau_model = np.asarray(self.torque_model.torque(q, qd, qdd), dtype=float)
@@ -239,7 +263,10 @@ class Plant:
             tau = tau_model + np.asarray(
                 self._extra_torque(t, q, qd, qdd, tau_model, self.temperatures), dtype=float)
         self.tau_model, self.tau = tau_model, tau
-        self.target_current = tau_model / self.drive_gains
+        self.target_moment = tau_model
+        if self.declared_payload is not None:   # the controller's model carries what it was told
+            self.target_moment = tau_model + self._declared_torque(q, qd, qdd)
+        self.target_current = self.target_moment / self.drive_gains
         self.current = tau / self.drive_gains
         measured = self.current + self.rng.normal(0.0, self.current_noise_a, N_JOINTS)
         if self._measure_current is not None:

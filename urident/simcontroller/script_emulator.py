@@ -71,6 +71,26 @@ def parse_program(text: str) -> Program:
     return Program(text=text, is_rtde_control=is_control, int_offset=int_offset, float_offset=float_offset)
 
 
+_NUM = r"\s*(-?[0-9.eE+-]+)\s*"
+_LIST3 = r"\[" + ",".join([_NUM] * 3) + r"\]"
+_LIST6 = r"\[" + ",".join([_NUM] * 6) + r"\]"
+_PAYLOAD_CALL = re.compile(r"\b(set_target_payload|set_payload)\s*\(" + _NUM + r",\s*" + _LIST3
+                           + r"(?:\s*,\s*" + _LIST6 + r")?[^)]*\)")
+
+
+def declared_payloads(text: str) -> list[tuple[float, list[float], list[float]]]:
+    """(mass, cog, [Ixx, Iyy, Izz, Ixy, Ixz, Iyz]) of each ``set_target_payload`` /
+    ``set_payload`` call with literal numbers in a program, in order."""
+    out = []
+    for m in _PAYLOAD_CALL.finditer(text):
+        try:
+            values = [float(v) for v in m.groups()[1:] if v is not None]
+        except ValueError:
+            continue
+        out.append((values[0], values[1:4], values[4:10] if len(values) == 10 else [0.0] * 6))
+    return out
+
+
 class ScriptStream:
     """Cuts the bytes received on a script port into complete programs.
 
@@ -153,6 +173,12 @@ class ScriptEmulator:
         self._executing = False
         self._blocking = None
         self._servo_thread = self._speed_thread = self._async_move = False
+        declared = declared_payloads(self.program.text)
+        if declared:   # a program's payload lines take effect when it starts
+            mass, cog, inertia = declared[-1]
+            c = self.c
+            c.payload_mass, c.payload_cog, c.payload_inertia = mass, cog, inertia
+            c.plant.declare_payload(mass, cog, inertia)
         if self.program.is_rtde_control:
             self._write_async_progress(-1)
             self._signal(READY)
@@ -279,10 +305,13 @@ class ScriptEmulator:
         elif cmd == 17:                                           # setPayload
             c.payload_mass = self._in_double(0)
             c.payload_cog = list(self._in_doubles(1, 3))
+            c.payload_inertia = [0.0] * 6
+            plant.declare_payload(c.payload_mass, c.payload_cog)
         elif cmd == 65:                                           # setTargetPayload
             c.payload_mass = self._in_double(0)
             c.payload_cog = list(self._in_doubles(1, 3))
             c.payload_inertia = list(self._in_doubles(4, 6))
+            plant.declare_payload(c.payload_mass, c.payload_cog, c.payload_inertia)
         elif cmd == 26:                                           # getStepTime
             self._out_doubles(0, [c.dt])
         elif cmd == 28:                                           # getTargetWaypoint

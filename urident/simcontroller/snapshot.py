@@ -48,7 +48,7 @@ class Snapshot:
         (self.actual_q, self.target_q, self.actual_qd, self.target_qdd, self.actual_current,
          self.target_current, self.target_moment, self.joint_control_output,
          self.actual_current_as_torque, self.joint_temperatures) = np.stack([
-            p.measured_q, p.q, p.qd, p.qdd, p.measured_current, p.target_current, p.tau_model,
+            p.measured_q, p.q, p.qd, p.qdd, p.measured_current, p.target_current, p.target_moment,
             p.current, p.measured_current * p.drive_gains, p.temperatures]).tolist()
         self.target_qd = self.actual_qd
 

@@ -9,32 +9,54 @@ from urident.simcontroller.effects.base import Effect, EffectUsageError
 from urident.simcontroller.effects.params import N_JOINTS, Param
 
 
-def payload_params(spec, mass_kg: float, offset_m: np.ndarray) -> np.ndarray:
-    """The 78-vector of a point mass ``mass_kg`` at ``offset_m`` in the tool frame, carried by
-    body 6 (all other entries zero)."""
+def payload_params(spec, mass_kg: float, offset_m: np.ndarray, inertia_com=None) -> np.ndarray:
+    """The 78-vector of a payload of ``mass_kg`` with centre of mass ``offset_m`` in the tool
+    (flange) frame and inertia ``inertia_com`` (3×3 about the centre of mass, flange axes; default
+    a point mass), carried by body 6 (all other entries zero)."""
     from urident.model.parameters import body_params, tool_body_vector
 
-    com = np.asarray(spec.tool_xyz) + np.asarray(spec.tool_rotation) @ np.asarray(offset_m, float)
-    return tool_body_vector(body_params(mass_kg, com, np.zeros((3, 3))))
+    r = np.asarray(spec.tool_rotation, dtype=float)
+    com = np.asarray(spec.tool_xyz) + r @ np.asarray(offset_m, float)
+    inertia = np.zeros((3, 3)) if inertia_com is None else r @ np.asarray(inertia_com, float) @ r.T
+    return tool_body_vector(body_params(mass_kg, com, inertia))
+
+
+def inertia_matrix(diagonal, products) -> np.ndarray:
+    """3×3 inertia from [Ixx, Iyy, Izz] and [Ixy, Ixz, Iyz] (URScript's order)."""
+    (xx, yy, zz), (xy, xz, yz) = diagonal, products
+    return np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]], dtype=float)
 
 
 class PayloadError(Effect):
     name = "payload_error"
-    summary = "an unmodelled payload: a point mass at the tool adds gravity and inertial torque"
-    details = ("τ = RNEA of a point mass mass_kg at offset_m (tool frame) on link 6, i.e. "
-               "Jᵀ·m·(a_p − g) at the mass point (gravity, inertial, Coriolis and centrifugal), "
-               "applied on the listed joints (default all; normally leave it so).")
+    summary = "an unmodelled payload: a rigid body at the tool adds gravity and inertial torque"
+    details = ("τ = RNEA of a rigid body on link 6: mass_kg with centre of mass offset_m (tool "
+               "flange frame) and inertia about it inertia_kg_m2 [Ixx, Iyy, Izz] plus "
+               "inertia_products_kg_m2 [Ixy, Ixz, Iyz] (flange axes, URScript's order; default a "
+               "point mass): gravity, inertial, Coriolis and centrifugal torque, applied on the "
+               "listed joints (default all; normally leave it so).")
     params = (
         Param("mass_kg", "number", 0.5, "payload mass [kg]", low=0.0, high=100.0),
         Param("offset_m", "vector3", (0.0, 0.0, 0.0), "mass position in the tool frame [m]",
               low=-2.0, high=2.0),
+        Param("inertia_kg_m2", "vector3", (0.0, 0.0, 0.0),
+              "principal-axis entries Ixx, Iyy, Izz about the centre of mass [kg·m²]", low=0.0, high=100.0),
+        Param("inertia_products_kg_m2", "vector3", (0.0, 0.0, 0.0),
+              "products Ixy, Ixz, Iyz about the centre of mass [kg·m²]", low=-100.0, high=100.0),
     )
     link_side = True
 
     def reset(self) -> None:
         ctx = self.context
-        self._params = payload_params(ctx.spec, self.config.values["mass_kg"],
-                                      self.config.values["offset_m"])
+        v = self.config.values
+        inertia = inertia_matrix(v["inertia_kg_m2"], v["inertia_products_kg_m2"])
+        ev = np.linalg.eigvalsh(inertia)
+        if ev.min() < -1e-12 or ev.sum() - 2 * ev.max() < -1e-12:
+            from urident.errors import ConfigError
+
+            raise ConfigError("payload_error: inertia_kg_m2 / inertia_products_kg_m2 are not a "
+                                   "physical inertia (positive semidefinite, triangle inequality)")
+        self._params = payload_params(ctx.spec, v["mass_kg"], v["offset_m"], inertia)
         self._pin = None
 
     def torque(self, t, q, qd, qdd, tau_model, temperatures, link_extra):

@@ -1,0 +1,139 @@
+"""Benchmark: payload and drive-gain identification on offline simulations (``urident simulate``)
+with the realistic preset of unmodelled effects on.
+
+Per seed: the arm is identified (``urident identify``, paper model plus offset, load-friction and
+Stribeck columns) on the robot's identification trajectory without a load; then each payload
+(0.3 to 10 kg, off-axis centre of mass, a full inertia) rides the validation trajectory and
+``urident payload`` estimates it with that arm. Drive gains: ``torque_constant_error`` on, the
+identification trajectory without and with a known 5 kg load, ``urident drive-gains``; scored on
+the joints it reports as calibrated. Prints one line per case; the last line is one JSON object.
+
+    python benchmarks/payload.py [--robot ur10e] [--seeds 1,2,3] [--trajectory FILE]
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import json
+import tempfile
+import time
+from contextlib import redirect_stderr, redirect_stdout
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+ROOT = Path(__file__).resolve().parent.parent
+PAYLOADS = [  # mass [kg], centre of mass [m] (flange), [Ixx, Iyy, Izz], [Ixy, Ixz, Iyz] about it
+    (0.3, [0.0, 0.01, 0.03], [4e-4, 4e-4, 2e-4], [0.0, 0.0, 0.0]),
+    (1.0, [0.02, -0.01, 0.06], [3e-3, 4e-3, 2e-3], [2e-4, 0.0, -1e-4]),
+    (3.0, [0.03, 0.02, 0.08], [0.02, 0.025, 0.015], [1e-3, -2e-3, 5e-4]),
+    (10.0, [0.0, 0.05, 0.10], [0.08, 0.06, 0.05], [0.0, 5e-3, 0.0]),
+]
+GAINS_FACTORS = [1.05, 0.97, 1.08, 1.02, 0.95, 1.10]
+
+
+def _quiet(argv):
+    from urident.cli.main import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with redirect_stdout(out), redirect_stderr(err):
+        code = main(argv)
+    if code != 0:
+        raise SystemExit(f"{' '.join(argv[:2])} failed ({code}): {err.getvalue().strip()}")
+    return out.getvalue()
+
+
+def _effects(path: Path, extra: list[dict]) -> Path:
+    realistic = yaml.safe_load((ROOT / "urident/simcontroller/presets/realistic.yaml").read_text())
+    path.write_text(yaml.safe_dump({"effects": realistic["effects"] + extra}))
+    return path
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--robot", default="ur10e")
+    ap.add_argument("--seeds", default="1,2,3")
+    ap.add_argument("--trajectory", default=None, help="loaded runs' trajectory (default: the robot's validation one)")
+    args = ap.parse_args()
+    from urident.ident.payload import Payload
+    from urident.model import load_robot
+
+    spec = load_robot(args.robot)
+    ident_traj = ROOT / "experiments" / f"{args.robot}_ident.yaml"
+    load_traj = Path(args.trajectory) if args.trajectory else ROOT / "experiments" / f"{args.robot}_valid.yaml"
+    seeds = [int(s) for s in args.seeds.split(",")]
+    cases, gains_cases = [], []
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        d = Path(tmp)
+        for seed in seeds:
+            arm_log, arm = d / f"arm{seed}.csv", d / f"arm{seed}_params.yaml"
+            _quiet(["simulate", "--trajectory", str(ident_traj), "--out", str(arm_log), "--seed", str(seed),
+                    "--effects", str(_effects(d / f"e_arm{seed}.txt", []))])
+            _quiet(["identify", str(arm_log), "--robot", args.robot, "--out", str(arm),
+                    "--friction-extra", "offset,load,stribeck"])
+            for k, (mass, com, diag, prod) in enumerate(PAYLOADS):
+                eff = _effects(d / f"e_{seed}_{k}.txt", [{"name": "payload_error", "mass_kg": mass, "offset_m": com,
+                                                           "inertia_kg_m2": diag, "inertia_products_kg_m2": prod}])
+                log, out = d / f"load{seed}_{k}.csv", d / f"p{seed}_{k}.json"
+                _quiet(["simulate", "--trajectory", str(load_traj), "--out", str(log), "--seed", str(100 + seed),
+                        "--effects", str(eff)])
+                _quiet(["payload", str(log), "--params", str(arm), "--out", str(d / f"p{seed}_{k}_payload.yaml"),
+                        "--json-out", str(out)])
+                est = json.loads(out.read_text())
+                from urident.simcontroller.effects.dynamics import inertia_matrix
+
+                true_i = np.linalg.eigvalsh(inertia_matrix(diag, prod))
+                est_i = np.linalg.eigvalsh(np.array(est["inertia_kg_m2"]))
+                inertia_ok = {"Jxx", "Jyy", "Jzz"} <= set(est["identifiable"])
+                case = {"seed": seed, "mass_kg": mass, "mass_err_pct": 100 * (est["mass_kg"] / mass - 1),
+                        "com_err_mm": 1000 * float(np.max(np.abs(np.array(est["com_m"]) - com))),
+                        "inertia_identifiable": inertia_ok,
+                        "principal_inertia_err_pct": [float(v) for v in 100 * (est_i / true_i - 1)],
+                        "identifiable": est["identifiable"]}
+                cases.append(case)
+                print(f"seed {seed}, {mass:5.1f} kg: mass {case['mass_err_pct']:+.2f} %, CoM {case['com_err_mm']:.2f} mm, "
+                      f"inertia {'identified' if inertia_ok else 'not identifiable'}"
+                      + (f" ({', '.join(f'{v:+.0f}' for v in case['principal_inertia_err_pct'])} %)" if inertia_ok else ""),
+                      flush=True)
+            # drive gains: torque_constant_error on, a known 5 kg load with an off-axis CoM
+            tk = {"name": "torque_constant_error", "gain_factor": GAINS_FACTORS}
+            load = {"name": "payload_error", "mass_kg": 5.0, "offset_m": [0.05, 0.0, 0.08]}
+            runs = []
+            for name, extra in (("without", [tk]), ("with", [tk, load])):
+                log = d / f"g_{name}{seed}.csv"
+                _quiet(["simulate", "--trajectory", str(ident_traj), "--out", str(log), "--seed", str(200 + seed),
+                        "--effects", str(_effects(d / f"e_g{name}{seed}.txt", extra))])
+                runs.append(str(log))
+            gj = d / f"g{seed}.json"
+            _quiet(["drive-gains", "--robot", args.robot, "--without", runs[0], "--with", runs[1],
+                    "--payload-mass", "5", "--payload-com", "0.05,0,0.08", "--out", str(d / f"g{seed}_gains.yaml"),
+                    "--json-out", str(gj)])
+            g = json.loads(gj.read_text())
+            true = np.array(spec.drive_gains) * GAINS_FACTORS
+            err = 100 * (np.array(g["drive_gains"]) / true - 1)
+            gains_cases.append({"seed": seed, "err_pct": [float(v) for v in err], "calibrated": g["calibrated"]})
+            print(f"seed {seed}, drive gains error %: " + " ".join(f"{v:+.2f}" for v in err)
+                  + "  calibrated: " + "".join("y" if c else "n" for c in g["calibrated"]), flush=True)
+    mass_err = max(abs(c["mass_err_pct"]) for c in cases)
+    com_err = max(c["com_err_mm"] for c in cases)
+    with_inertia = [c for c in cases if c["inertia_identifiable"]]
+    inertia_err = max((max(abs(v) for v in c["principal_inertia_err_pct"]) for c in with_inertia), default=None)
+    gains_err = max((abs(e) for c in gains_cases for e, ok in zip(c["err_pct"], c["calibrated"]) if ok), default=None)
+    summary = {"robot": args.robot, "seeds": seeds, "payload_trajectory": str(load_traj.name),
+               "max_mass_err_pct": mass_err, "max_com_err_mm": com_err,
+               "inertia_identified_cases": len(with_inertia), "cases": len(cases),
+               "max_principal_inertia_err_pct": inertia_err,
+               "max_calibrated_drive_gain_err_pct": gains_err,
+               "calibrated_joints": [c["calibrated"] for c in gains_cases],
+               "wall_s": time.perf_counter() - t0}
+    print(f"max mass error {mass_err:.2f} %, max CoM error {com_err:.2f} mm, inertia identified in "
+          f"{len(with_inertia)}/{len(cases)} cases" + (f" (max principal error {inertia_err:.1f} %)" if with_inertia else "")
+          + (f", max drive-gain error on calibrated joints {gains_err:.2f} %" if gains_err is not None else ""))
+    print(json.dumps(summary))
+
+
+if __name__ == "__main__":
+    main()

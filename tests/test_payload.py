@@ -1,0 +1,239 @@
+"""Payload identification on an identified arm (issue 17): ``urident payload``, the payload file,
+predicting with a payload, and the bad inputs that must be one line and exit 2.
+
+Data: offline simulations (``urident simulate``) of the UR5 pair in ``experiments/``, the arm
+identified without a load, the loaded run carrying a ``payload_error`` of known mass and centre
+of mass."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from urident.cli.main import main
+from urident.ident.payload import Payload, flange_map
+from urident.ident.payload_file import load_payload, save_payload
+from urident.model import load_robot
+from urident.model.parameters import body_params
+
+ROOT = Path(__file__).resolve().parent.parent
+MASS, COM = 2.0, [0.01, -0.02, 0.06]
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    d = tmp_path_factory.mktemp("payload")
+    effects = d / "effects_load.yaml"
+    effects.write_text(yaml.safe_dump({"effects": [{"name": "payload_error", "mass_kg": MASS,
+                                                    "offset_m": COM}]}))
+    traj = yaml.safe_load((ROOT / "experiments" / "ur5_valid.yaml").read_text())
+    for key in ("a_rad_s", "b_rad_s"):   # the wrist joints 4-6 held still
+        for j in (3, 4, 5):
+            traj["trajectory"][key][j] = [0.0] * len(traj["trajectory"][key][j])
+    for j in (3, 4, 5):
+        traj["trajectory"]["q_start_rad"][j] = traj["trajectory"]["q0_rad"][j]
+    still = d / "still_traj.yaml"
+    still.write_text(yaml.safe_dump(traj))
+    for args in (["--trajectory", str(ROOT / "experiments/ur5_ident.yaml"), "--out", str(d / "arm.csv"), "--seed", "1"],
+                 ["--trajectory", str(ROOT / "experiments/ur5_valid.yaml"), "--out", str(d / "load.csv"),
+                  "--effects", str(effects), "--seed", "2"],
+                 ["--trajectory", str(ROOT / "experiments/ur5_ident.yaml"), "--out", str(d / "load_ident.csv"),
+                  "--effects", str(effects), "--seed", "3"],
+                 ["--trajectory", str(still), "--out", str(d / "still.csv"), "--effects", str(effects)]):
+        assert main(["simulate", *args]) == 0
+    assert main(["identify", str(d / "arm.csv"), "--robot", "ur5", "--out", str(d / "arm_params.yaml")]) == 0
+    return d
+
+
+def test_flange_map_matches_the_tool_frame():
+    spec = load_robot("ur10e")
+    inertia = np.array([[0.02, 0.001, -0.002], [0.001, 0.03, 0.0005], [-0.002, 0.0005, 0.01]])
+    p = Payload("ur10e", 3.0, [0.02, -0.01, 0.08], inertia)
+    r, t = spec.tool_rotation, spec.tool_xyz
+    expected = body_params(3.0, t + r @ p.com_m, r @ inertia @ r.T)
+    np.testing.assert_allclose(p.body_params(spec), expected, atol=1e-12)
+    np.testing.assert_allclose(flange_map(spec) @ p.flange_vector, expected, atol=1e-12)
+
+
+def test_payload_identifies_mass_and_centre_of_mass(runs, capsys):
+    out, js = runs / "p.yaml", runs / "p.json"
+    capsys.readouterr()
+    assert main(["payload", str(runs / "load.csv"), "--params", str(runs / "arm_params.yaml"),
+                 "--out", str(out), "--json-out", str(js)]) == 0
+    text = capsys.readouterr().out
+    assert "set_target_payload(" in text and "script manual" in text and "identifiable:" in text
+    data = json.loads(js.read_text())
+    for key in ("mass_kg", "com_m", "inertia_kg_m2", "sigma", "identifiable"):
+        assert key in data
+    assert abs(data["mass_kg"] - MASS) < 0.02 * MASS
+    assert np.max(np.abs(np.array(data["com_m"]) - COM)) < 0.003
+    assert {"m", "mcx", "mcy", "mcz"} <= set(data["identifiable"])
+    assert set(data["sigma"]) >= {"mass_kg", "com_m", "inertia_kg_m2"}
+    assert data["fit"]["e_n_with_payload"] < 0.5 * data["fit"]["e_n_arm_alone"]
+    p = load_payload(out, load_robot("ur5"))
+    assert abs(p.mass_kg - data["mass_kg"]) < 1e-12
+    assert np.all(np.linalg.eigvalsh(p.inertia_kg_m2) >= -1e-9)
+
+
+def test_payload_refuses_an_existing_output(runs, capsys):
+    out = runs / "exists.yaml"
+    out.write_text("x")
+    assert main(["payload", str(runs / "load.csv"), "--params", str(runs / "arm_params.yaml"),
+                 "--out", str(out)]) == 2
+
+
+def _one_line_exit2(capsys, argv, needle):
+    capsys.readouterr()
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("urident: error:") and "\n" not in err and "Traceback" not in err
+    assert needle in err, err
+
+
+def test_no_wrist_motion_is_bad_input(runs, capsys):
+    _one_line_exit2(capsys, ["payload", str(runs / "still.csv"), "--params", str(runs / "arm_params.yaml"),
+                             "--out", str(runs / "x.yaml")], "wrist")
+
+
+def test_params_without_base_parameters_is_bad_input(runs, capsys):
+    bad = runs / "nobase.yaml"
+    data = yaml.safe_load((runs / "arm_params.yaml").read_text())
+    del data["base_parameters"]
+    bad.write_text(yaml.safe_dump(data))
+    _one_line_exit2(capsys, ["payload", str(runs / "load.csv"), "--params", str(bad),
+                             "--out", str(runs / "x.yaml")], "base_parameters")
+
+
+def test_bad_payload_files(tmp_path):
+    from urident.ident.payload import PayloadError
+
+    p = tmp_path / "p.yaml"
+    save_payload(Payload("ur10e", 1.0, [0, 0, 0.05], np.eye(3) * 1e-3), p)
+    assert load_payload(p, load_robot("ur10e")).mass_kg == 1.0
+    with pytest.raises(PayloadError, match="robot"):
+        load_payload(p, load_robot("ur5"))
+    data = yaml.safe_load(p.read_text())
+    for key, value, needle in (("mass_kg", 0.0, "mass_kg"), ("mass_kg", -1.0, "mass_kg"),
+                               ("com_m", [0, 0], "com_m"), ("surprise", 1, "surprise"),
+                               ("inertia_kg_m2", [[1, 0, 0], [0, -1, 0], [0, 0, 1]], "inertia")):
+        bad = dict(data, **{key: value})
+        p.write_text(yaml.safe_dump(bad))
+        with pytest.raises(PayloadError, match=needle):
+            load_payload(p)
+
+
+def _validate(runs, capsys, *extra):
+    js = runs / f"val{len(list(runs.glob('val*.json')))}.json"
+    assert main(["validate", str(runs / "load.csv"), "--params", str(runs / "arm_params.yaml"),
+                 "--json-out", str(js), *extra]) == 0
+    return json.loads(js.read_text())
+
+
+def test_validate_view_and_gap_with_a_payload(runs, capsys):
+    from urident.ident import load_params, predict_recordings
+    from urident.ident.payload import Payload
+    from urident.logs import load_log
+
+    spec = load_robot("ur5")
+    true = runs / "true_payload.yaml"
+    save_payload(Payload("ur5", MASS, COM, np.zeros((3, 3))), true)
+    alone = _validate(runs, capsys)
+    loaded = _validate(runs, capsys, "--payload", str(true))
+    assert loaded["payload"] == str(true)
+    assert loaded["e_n"] < 0.2 * alone["e_n"]
+    # the library path adds exactly the payload's torque
+    params = load_params(runs / "arm_params.yaml")
+    rec = load_log(runs / "load.csv")
+    p0 = predict_recordings(params, rec, spec)
+    p1 = predict_recordings(params, rec, spec, payload=load_payload(true, spec))
+    from urident.ident.payload import payload_torque
+
+    np.testing.assert_allclose(p1.tau_predicted - p0.tau_predicted,
+                               payload_torque(spec, load_payload(true), p0.data.q, p0.data.qd, p0.data.qdd),
+                               atol=1e-9)
+    rrd = runs / "view.rrd"
+    capsys.readouterr()
+    assert main(["view", str(runs / "load.csv"), "--params", str(runs / "arm_params.yaml"),
+                 "--payload", str(true), "--save", str(rrd)]) == 0
+    e_view = float(capsys.readouterr().out.split("e_N = ")[1].split(",")[0])
+    assert abs(e_view - loaded["e_n"]) < 1e-4
+    # a payload file for another robot is refused in one line
+    other = runs / "ur10e_payload.yaml"
+    save_payload(Payload("ur10e", MASS, COM, np.zeros((3, 3))), other)
+    _one_line_exit2(capsys, ["validate", str(runs / "load.csv"), "--params", str(runs / "arm_params.yaml"),
+                             "--payload", str(other)], "ur10e")
+    zero = runs / "zero_payload.yaml"
+    zero.write_text(true.read_text().replace(f"mass_kg: {MASS}", "mass_kg: 0.0"))
+    _one_line_exit2(capsys, ["view", str(runs / "load.csv"), "--params", str(runs / "arm_params.yaml"),
+                             "--payload", str(zero), "--save", str(runs / "v2.rrd")], "mass_kg")
+
+
+def test_identify_the_arm_from_loaded_runs_with_a_known_payload(runs, capsys):
+    true = runs / "true_payload2.yaml"
+    save_payload(Payload("ur5", MASS, COM, np.zeros((3, 3))), true)
+    out = runs / "arm_from_loaded.yaml"
+    assert main(["identify", str(runs / "load.csv"), "--robot", "ur5", "--out", str(out),
+                 "--payload", str(true)]) == 0
+    naive = runs / "arm_naive.yaml"
+    assert main(["identify", str(runs / "load.csv"), "--robot", "ur5", "--out", str(naive)]) == 0
+    # on the unloaded identification run, the arm identified with the payload removed predicts
+    # as well as the one identified there; the one that ignored the payload does not
+    e = {}
+    for name in ("arm_params", "arm_from_loaded", "arm_naive"):
+        js = runs / f"{name}_on_arm.json"
+        assert main(["validate", str(runs / "arm.csv"), "--params", str(runs / f"{name}.yaml"),
+                     "--json-out", str(js)]) == 0
+        e[name] = json.loads(js.read_text())["e_n"]
+    assert e["arm_from_loaded"] < 2 * e["arm_params"] + 0.01
+    assert e["arm_naive"] > 3 * e["arm_from_loaded"]
+
+
+def test_gap_with_the_known_payload_finds_nothing_left(runs):
+    true = runs / "true_payload3.yaml"
+    save_payload(Payload("ur5", MASS, COM, np.zeros((3, 3))), true)
+    found = {}
+    for name, extra in (("without", []), ("with", ["--payload", str(true)])):
+        js = runs / f"gap_{name}.json"
+        assert main(["gap", "--robot", "ur5", "--ident", str(runs / "load_ident.csv"), "--valid",
+                     str(runs / "load.csv"), "--params", str(runs / "arm_params.yaml"),
+                     "--json-out", str(js), *extra]) == 0
+        found[name] = [f["effect"] for f in json.loads(js.read_text())["findings"]]
+    assert "payload_error" in found["without"]
+    assert found["with"] == []
+
+
+def test_drive_gains_from_a_known_load(tmp_path, capsys):
+    factors = [1.05, 0.97, 1.08, 1.02, 0.95, 1.1]
+    tk = {"name": "torque_constant_error", "gain_factor": factors}
+    load = {"name": "payload_error", "mass_kg": 4.0, "offset_m": [0.03, 0.0, 0.05]}
+    for name, effects, seed in (("without", [tk], "4"), ("with", [tk, load], "5")):
+        (tmp_path / f"eff_{name}.yaml").write_text(yaml.safe_dump({"effects": effects}))
+        assert main(["simulate", "--trajectory", str(ROOT / "experiments/ur5_ident.yaml"), "--out",
+                     str(tmp_path / f"{name}.csv"), "--effects", str(tmp_path / f"eff_{name}.yaml"),
+                     "--seed", seed]) == 0
+    gains, js = tmp_path / "gains.yaml", tmp_path / "gains.json"
+    assert main(["drive-gains", "--robot", "ur5", "--without", str(tmp_path / "without.csv"), "--with",
+                 str(tmp_path / "with.csv"), "--payload-mass", "4", "--payload-com", "0.03,0,0.05",
+                 "--out", str(gains), "--json-out", str(js)]) == 0
+    data = json.loads(js.read_text())
+    true = np.array(load_robot("ur5").drive_gains) * factors
+    est, sigma = np.array(data["drive_gains"]), np.array(data["sigma"])
+    ok = np.array(data["calibrated"])
+    assert ok[1:5].all()    # the load's gravity torque reaches joints 2-5 strongly
+    assert np.all(np.abs(est[ok] / true[ok] - 1) < 0.01)
+    assert np.all(np.abs(est - true) < 4 * sigma + 0.01 * true)
+    # the gains file works wherever --drive-gains does
+    capsys.readouterr()
+    assert main(["identify", str(tmp_path / "without.csv"), "--robot", "ur5", "--out", str(tmp_path / "p.yaml"),
+                 "--drive-gains", str(gains)]) == 0
+    from urident.ident import load_params
+
+    np.testing.assert_allclose(load_params(tmp_path / "p.yaml").drive_gains, est)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(gains.read_text().replace("format: urident-drive-gains", "format: other"))
+    _one_line_exit2(capsys, ["identify", str(tmp_path / "without.csv"), "--robot", "ur5", "--out",
+                             str(tmp_path / "q.yaml"), "--drive-gains", str(bad)], "--drive-gains")

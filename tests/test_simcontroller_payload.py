@@ -1,0 +1,69 @@
+"""The simulated controller takes a payload declared by ur_rtde's setTargetPayload / setPayload
+and reports it in the target moment, as a real controller's model does (issue 17); the
+``payload_error`` effect is a full ten-parameter rigid body."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+rtde_control = pytest.importorskip("rtde_control")
+rtde_receive = pytest.importorskip("rtde_receive")
+
+from urident.ident.payload import Payload, payload_torque  # noqa: E402
+from urident.model import load_robot  # noqa: E402
+from urident.simcontroller.process import SimControllerProcess  # noqa: E402
+
+HOST = "127.0.0.41"
+START_Q = [0.2, -1.4, 1.4, -1.5, -1.5, 0.3]
+
+
+def _moment(receive, n=10):
+    time.sleep(0.05)
+    return np.mean([receive.getTargetMoment() for _ in range(n)], axis=0)
+
+
+def test_declared_payload_shows_in_the_target_moment():
+    spec = load_robot("ur5e")
+    with SimControllerProcess(host=HOST, robot="ur5e", seed=3) as sim:
+        control = rtde_control.RTDEControlInterface(HOST)
+        receive = rtde_receive.RTDEReceiveInterface(HOST)
+        try:
+            assert control.moveJ(START_Q, 1.5, 3.0)
+            q = np.array(receive.getActualQ())
+            before = _moment(receive)
+            mass, cog, inertia = 2.0, [0.01, 0.02, 0.08], [0.01, 0.012, 0.008, 0.0, 0.0, 0.0]
+            assert control.setTargetPayload(mass, cog, inertia)
+            after = _moment(receive)
+            expected = payload_torque(spec, Payload("ur5e", mass, cog, np.diag(inertia[:3])),
+                                      q[None], np.zeros((1, 6)), np.zeros((1, 6)))[0]
+            assert np.max(np.abs(expected)) > 1.0          # a real change on the shoulder and elbow
+            np.testing.assert_allclose(after - before, expected, atol=0.02)
+            assert control.setPayload(0.5, [0.0, 0.0, 0.05])
+            half = _moment(receive)
+            expected = payload_torque(spec, Payload("ur5e", 0.5, [0, 0, 0.05], np.zeros((3, 3))),
+                                      q[None], np.zeros((1, 6)), np.zeros((1, 6)))[0]
+            np.testing.assert_allclose(half - before, expected, atol=0.02)
+            control.stopScript()
+        finally:
+            receive.disconnect()
+            control.disconnect()
+    assert sim.returncode == 0
+
+
+def test_payload_error_is_a_rigid_body():
+    from urident.model import joint_torques
+    from urident.simcontroller.effects import payload_params
+    from urident.simcontroller.effects.dynamics import inertia_matrix
+
+    spec = load_robot("ur10e")
+    rng = np.random.default_rng(0)
+    q, qd, qdd = (rng.uniform(-1, 1, (50, 6)) for _ in range(3))
+    inertia = inertia_matrix([0.02, 0.025, 0.015], [0.001, -0.002, 0.0005])
+    p = Payload("ur10e", 3.0, [0.02, -0.01, 0.08], inertia)
+    tau_effect = joint_torques(spec, payload_params(spec, 3.0, p.com_m, inertia), q, qd, qdd, 0.01)
+    np.testing.assert_allclose(tau_effect, payload_torque(spec, p, q, qd, qdd), atol=1e-9)
+    point = joint_torques(spec, payload_params(spec, 3.0, p.com_m), q, qd, qdd, 0.01)
+    assert np.max(np.abs(tau_effect - point)) > 0.01      # the inertia matters

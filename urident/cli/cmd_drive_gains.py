@@ -1,0 +1,98 @@
+"""``urident drive-gains``: the six joint drive gains from a run without and a run with a known load."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from urident.cli import options
+
+
+def com_vector(text: str) -> tuple[float, ...]:
+    """``x,y,z`` [m] in the tool flange frame (``--payload-com``)."""
+    try:
+        return options.parse_numbers(text, 3)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    from urident.logs import add_log_arguments
+
+    p = subparsers.add_parser(
+        "drive-gains", help="estimate the joint drive gains [N·m/A] from runs without and with a known load",
+        description="Estimate the six joint-side drive gains i_G·k [N·m per A] from a run without "
+                    "and a run with a payload of known mass (and centre of mass) on the flange: the "
+                    "arm's base parameters and the gains are fitted together, the payload's known "
+                    "torque fixing their scale (least squares refined by instrumental variables, "
+                    "urident.ident.torque). The gains file is accepted by every --drive-gains option.")
+    p.add_argument("--robot", required=True, help="robot name or robot file")
+    p.add_argument("--without", required=True, nargs="+", metavar="LOG", help="log(s) without the load")
+    p.add_argument("--with", dest="with_", required=True, nargs="+", metavar="LOG", help="log(s) with the load")
+    p.add_argument("--payload-mass", type=options.positive_float, required=True, metavar="KG",
+                   help="the known load's mass [kg]")
+    p.add_argument("--payload-com", type=com_vector, default=(0.0, 0.0, 0.0), metavar="X,Y,Z",
+                   help="its centre of mass in the tool flange frame [m] (default 0,0,0)")
+    p.add_argument("--out", required=True, metavar="GAINS.yaml", help="drive-gains file to write")
+    p.add_argument("--json-out", metavar="FILE", default=None, help="also write the result as JSON")
+    p.add_argument("--reduced", action="store_true", help="the reduced base set for the arm")
+    options.add_overwrite_argument(p, "existing gains and JSON files")
+    add_log_arguments(p)
+    p.set_defaults(func=run)
+
+
+METHOD = ("joint least squares of the arm's base parameters, a constant torque per joint and six gains on both runs (payload "
+          "torque known, point mass unless an inertia is given), refined by two instrumental-"
+          "variable iterations (instruments: the currents the first fit predicts)")
+
+
+#: A joint counts as calibrated when its gain's relative σ is at most this [%]: the load's torque
+#: on it is well above the noise (a load on the flange axis gives joint 6 none, for one).
+CALIBRATED_PCT = 1.0
+
+
+def run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from urident.ident import PreprocessConfig, prepare
+    from urident.ident.gains_file import save_gains
+    from urident.ident.payload import Payload, check_wrist_motion
+    from urident.ident.torque import estimate_drive_gains
+    from urident.logs import load_log_from_args
+    from urident.model import load_robot
+
+    options.output_path("--out", args.out, args.overwrite)
+    options.output_path("--json-out", args.json_out, args.overwrite)
+    spec = load_robot(args.robot)
+    runs = []
+    for what, paths in (("--without", args.without), ("--with", args.with_)):
+        recs = [load_log_from_args(p, args, robot=spec.name) for p in paths]
+        data = prepare(recs, spec, PreprocessConfig(), np.ones(6))   # tau = current [A]
+        runs.append((data.q, data.qd, data.qdd, data.tau))
+    check_wrist_motion(runs[1][0], "--with logs")
+    payload = Payload(spec.name, args.payload_mass, args.payload_com, np.zeros((3, 3)))
+    est = estimate_drive_gains(spec, runs[0], runs[1], payload.body_params(spec), reduced=args.reduced,
+                               offset=True)
+    data = {"without": list(args.without), "with": list(args.with_), "payload_mass_kg": args.payload_mass,
+            "payload_com_m": list(args.payload_com), "robot_file_gains": [float(g) for g in spec.drive_gains]}
+    save_gains(args.out, spec.name, est.gains, est.sigma, METHOD, data, overwrite=args.overwrite)
+    rel = 100 * est.sigma / np.abs(est.gains)
+    calibrated = [bool(r <= CALIBRATED_PCT) for r in rel]
+    data["calibrated"] = calibrated
+    print(f"drive gains on {spec.name} [N·m/A] (robot file: "
+          + ", ".join(f"{g:.4g}" for g in spec.drive_gains) + ")")
+    for j, (g, s, r, g0) in enumerate(zip(est.gains, est.sigma, rel, spec.drive_gains)):
+        verdict = "" if calibrated[j] else f"  NOT calibrated (σ > {CALIBRATED_PCT:g} %): keep another value"
+        print(f"  joint {j + 1}: {g:9.4f} ± {s:.4f} ({r:.2f} %), {100 * (g / g0 - 1):+.1f} % vs the "
+              f"robot file{verdict}")
+    print(f"  method: {METHOD}")
+    if args.json_out:
+        from urident.fileio import write_text_atomic
+
+        write_text_atomic(args.json_out, json.dumps({"drive_gains": [float(g) for g in est.gains],
+                                                     "sigma": [float(s) for s in est.sigma],
+                                                     "method": METHOD, "robot": spec.name, **data},
+                                                    indent=2) + "\n", overwrite=args.overwrite)
+    print(f"wrote {args.out}" + (f", {args.json_out}" if args.json_out else ""), file=sys.stderr)
+    return 0

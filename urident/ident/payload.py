@@ -1,0 +1,362 @@
+"""A payload on the tool flange: its ten inertial parameters, estimation with the arm fixed, and
+its torque on the joints.
+
+Frames. A payload is written in UR's tool flange frame F (the robot file's ``tool`` frame: origin
+on the flange face, z out of the flange), as ``set_target_payload`` takes it: mass m, centre of
+mass c (F), inertia I_c about the centre of mass with F's axes. Its torque adds to the last
+body's (:data:`urident.model.parameters.TOOL_BODY`, frame K_6), so the flange-frame ten-vector
+φ_F = (m, m·c, J_F about F's origin) maps linearly to K_6: with r_K6 = t + R r_F,
+h_K6 = m t + R h_F and J_K6 = R J_F Rᵀ − m S(t)S(t) − S(t)S(R h_F) − S(R h_F)S(t) (S: cross-product
+matrix). :func:`flange_map` is that 10×10 matrix L.
+
+Estimation (:func:`estimate_payload`): the arm's parameters fixed, the residual
+τ_measured − τ_arm = Y_6 L φ_F is linear in φ_F (Y_6: the regressor columns of body 6). Which of
+the ten the data excite is decided by a pivoted QR of the column-normalised, joint-weighted
+regressor (a column within 1e-3 of the span of the others carries nothing of its own) and then by
+each parameter's standard deviation (inflated for the residual's autocorrelation:
+:func:`urident.ident.estimate.correlation_inflation`) against a physical tolerance (:data:`TOLERANCES`); the rest
+are fixed (first moments at 0, inertia at a point mass's) and reported as not identifiable. The
+physically consistent estimate solves the same least squares over all ten with the payload's
+pseudo-inertia ⪰ 0, m in ``mass_range``, a weak prior (the arm's λ) towards the least-squares
+values on the identifiable parameters and a strong one on the fixed ones (they move only where
+the constraints need it).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from urident.errors import ConfigError
+from urident.ident.estimate import correlation_inflation
+
+#: Names of the flange-frame ten-vector φ_F (first moments m·c, inertia about the flange origin).
+PAYLOAD_FIELDS = ("m", "mcx", "mcy", "mcz", "Jxx", "Jyy", "Jzz", "Jyz", "Jxz", "Jxy")
+#: A parameter whose σ exceeds its tolerance is reported as not identifiable: mass 5 % (at least
+#: 0.02 kg), first moments 5 mm × mass, inertias 15 % of the mean principal inertia about the
+#: centre of mass (≥ 1e-4 kg·m²).
+TOLERANCES = {"mass_rel": 0.05, "mass_abs": 0.02, "com_m": 0.005, "inertia_rel": 0.15, "inertia_abs": 1e-4}
+#: Structural rank threshold on the column-normalised regressor (sine to the span of the others).
+RANK_TOL = 1e-3
+#: |q| range [rad] below which a wrist joint counts as not moving.
+MIN_WRIST_RANGE_RAD = 0.02
+
+
+class PayloadError(ConfigError):
+    """Bad payload input: a non-positive mass, no wrist motion, a payload for another robot."""
+
+
+@dataclass(frozen=True)
+class Payload:
+    """A payload in UR's tool flange frame (module doc). ``sigma``: the same keys' standard
+    deviations (NaN where fixed); ``identifiable``: names of the parameters the data determined."""
+
+    robot: str
+    mass_kg: float
+    com_m: np.ndarray              # (3,) flange frame
+    inertia_kg_m2: np.ndarray      # (3, 3) about the centre of mass, flange axes
+    sigma: dict = field(default_factory=dict)
+    identifiable: tuple[str, ...] = PAYLOAD_FIELDS
+    method: str = "given"
+    info: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.mass_kg) and self.mass_kg > 0):
+            raise PayloadError(f"payload mass must be positive, not {self.mass_kg:g} kg")
+        object.__setattr__(self, "com_m", np.asarray(self.com_m, dtype=float).reshape(3))
+        inertia = np.asarray(self.inertia_kg_m2, dtype=float).reshape(3, 3)
+        object.__setattr__(self, "inertia_kg_m2", 0.5 * (inertia + inertia.T))
+
+    @property
+    def flange_vector(self) -> np.ndarray:
+        """φ_F: (m, m·c, J about the flange origin as Jxx, Jyy, Jzz, Jyz, Jxz, Jxy)."""
+        c = self.com_m
+        j = self.inertia_kg_m2 + self.mass_kg * (c @ c * np.eye(3) - np.outer(c, c))
+        return np.r_[self.mass_kg, self.mass_kg * c, j[0, 0], j[1, 1], j[2, 2], j[1, 2], j[0, 2], j[0, 1]]
+
+    def body_params(self, spec) -> np.ndarray:
+        """The payload's ten paper parameters about K_6 (add to :data:`TOOL_BODY`)."""
+        return flange_map(spec) @ self.flange_vector
+
+    def urscript(self) -> str:
+        """``set_target_payload(m, [cx, cy, cz], [Ixx, Iyy, Izz, Ixy, Ixz, Iyz])``."""
+        i = self.inertia_kg_m2
+        inertia = [i[0, 0], i[1, 1], i[2, 2], i[0, 1], i[0, 2], i[1, 2]]
+        return (f"set_target_payload({self.mass_kg:.4f}, [{', '.join(f'{v:.5f}' for v in self.com_m)}], "
+                f"[{', '.join(f'{v:.6f}' for v in inertia)}])")
+
+    def describe(self) -> str:
+        c = self.com_m * 1000
+        ev = np.linalg.eigvalsh(self.inertia_kg_m2)
+        return (f"mass {self.mass_kg:.4f} kg, centre of mass [{c[0]:.1f}, {c[1]:.1f}, {c[2]:.1f}] mm "
+                f"(flange frame), principal inertias [{', '.join(f'{v:.5f}' for v in ev)}] kg·m²")
+
+
+def _skew(v) -> np.ndarray:
+    x, y, z = v
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+def _tensor(j6) -> np.ndarray:
+    xx, yy, zz, yz, xz, xy = j6
+    return np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+
+
+def _to_body(spec, phi: np.ndarray) -> np.ndarray:
+    """φ_F → the paper's ten parameters about K_6 (module doc)."""
+    from urident.model.parameters import inertia_tensor  # noqa: F401  (the layout's J convention)
+
+    t = np.asarray(spec.tool_xyz, dtype=float)
+    r = np.asarray(spec.tool_rotation, dtype=float)
+    m, h = phi[0], r @ phi[1:4]
+    jf = _tensor(phi[4:10])
+    st, sh = _skew(t), _skew(h)
+    j = r @ jf @ r.T - m * st @ st - st @ sh - sh @ st
+    hk = m * t + h
+    return np.array([m, hk[0], hk[1], hk[2], j[0, 0], j[1, 1], j[2, 2], -j[1, 2], -j[0, 2], -j[0, 1]])
+
+
+def flange_map(spec) -> np.ndarray:
+    """L (10×10): the paper's K_6 parameters = L φ_F (module doc)."""
+    return np.column_stack([_to_body(spec, e) for e in np.eye(10)])
+
+
+def from_flange_vector(robot: str, phi: np.ndarray, **kw) -> Payload:
+    phi = np.asarray(phi, dtype=float)
+    m = float(phi[0])
+    if not m > 0:
+        raise PayloadError(f"estimated payload mass is {m:.4g} kg, not positive: the logs do not "
+                           "determine a payload (is one mounted, and do the logs move the arm?)")
+    c = phi[1:4] / m
+    inertia = _tensor(phi[4:10]) - m * (c @ c * np.eye(3) - np.outer(c, c))
+    return Payload(robot, m, c, inertia, **kw)
+
+
+def payload_torque(spec, payload: Payload, q, qd, qdd) -> np.ndarray:
+    """(N, 6) joint torque of ``payload`` at states (q, q̇, q̈)."""
+    from urident.ident.torque import payload_torque as body_torque
+
+    return body_torque(spec, q, qd, qdd, payload.body_params(spec))
+
+
+def without_payload(spec, payload: Payload, data):
+    """Prepared ``data`` with the payload's torque removed from the measured torque (the arm
+    alone; ``identify --payload``, ``gap --payload``)."""
+    from dataclasses import replace
+
+    check_robot(payload, spec)
+    return replace(data, tau=data.tau - payload_torque(spec, payload, data.q, data.qd, data.qdd))
+
+
+def check_robot(payload: Payload, spec, where: str = "payload") -> None:
+    if payload.robot != spec.name:
+        raise PayloadError(f"{where}: payload identified on robot {payload.robot!r}, not {spec.name!r}")
+
+
+def check_wrist_motion(q: np.ndarray, where: str = "logs") -> None:
+    """PayloadError when none of the wrist joints (4-6) moves: the payload is then not excited."""
+    q = np.asarray(q, dtype=float)
+    span = q[:, 3:].max(axis=0) - q[:, 3:].min(axis=0) if len(q) else np.zeros(3)
+    if not np.any(span > MIN_WRIST_RANGE_RAD):
+        raise PayloadError(f"{where}: the wrist joints 4-6 do not move (ranges "
+                           f"{', '.join(f'{s:.3g}' for s in span)} rad): a payload cannot be identified")
+
+
+@dataclass(frozen=True)
+class PayloadEstimate:
+    ols: Payload
+    consistent: Payload
+    train_rms_arm: np.ndarray        # (6,) residual RMS of the arm alone [N·m]
+    train_rms: np.ndarray            # (6,) with the consistent payload
+    train_e_n_arm: float
+    train_e_n: float
+    n_samples: int
+
+
+def _tolerances(phi: np.ndarray) -> np.ndarray:
+    m = max(abs(phi[0]), 0.01)
+    c = phi[1:4] / m
+    # about the centre of mass: the flange-origin inertia's m·c² part is the first moments' business
+    ic = _tensor(phi[4:10]) - m * (c @ c * np.eye(3) - np.outer(c, c))
+    mean_principal = abs(np.trace(ic)) / 3
+    tol = np.empty(10)
+    tol[0] = max(TOLERANCES["mass_rel"] * m, TOLERANCES["mass_abs"])
+    tol[1:4] = TOLERANCES["com_m"] * m
+    tol[4:10] = max(TOLERANCES["inertia_rel"] * mean_principal, TOLERANCES["inertia_abs"])
+    return tol
+
+
+def _fixed_values(phi: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """Values for the fixed parameters: first moments 0, inertias those of a point mass."""
+    out = phi.copy()
+    out[1:4] = np.where(free[1:4], phi[1:4], 0.0)
+    m = max(phi[0], 1e-6)
+    c = out[1:4] / m
+    jp = m * (c @ c * np.eye(3) - np.outer(c, c))
+    point = np.r_[jp[0, 0], jp[1, 1], jp[2, 2], jp[1, 2], jp[0, 2], jp[0, 1]]
+    out[4:10] = np.where(free[4:10], phi[4:10], point)
+    return out
+
+
+def _structural(a: np.ndarray) -> np.ndarray:
+    """Columns of ``a`` each with a component of its own (pivoted QR on unit columns)."""
+    import scipy.linalg
+
+    norms = np.linalg.norm(a, axis=0)
+    free = norms > 0
+    an = a[:, free] / norms[free]
+    _, r, piv = scipy.linalg.qr(an, mode="economic", pivoting=True)
+    keep = np.abs(np.diag(r)) > RANK_TOL
+    idx = np.flatnonzero(free)[piv[keep]]
+    out = np.zeros(a.shape[1], dtype=bool)
+    out[idx] = True
+    return out
+
+
+def _ls(a: np.ndarray, y: np.ndarray, free: np.ndarray, fixed: np.ndarray):
+    """Least squares over the ``free`` columns with the others at ``fixed``: (φ, σ)."""
+    rhs = y - a[:, ~free] @ fixed[~free]
+    af = a[:, free]
+    scale = np.linalg.norm(af, axis=0)
+    x, *_ = np.linalg.lstsq(af / scale, rhs, rcond=None)
+    x /= scale
+    e = af @ x - rhs
+    dof = max(len(y) - af.shape[1], 1)
+    cov = (np.linalg.pinv((af / scale).T @ (af / scale)) / np.outer(scale, scale) * (e @ e / dof)
+           * correlation_inflation(e))
+    phi = fixed.copy()
+    phi[free] = x
+    sigma = np.full(10, np.nan)
+    sigma[free] = np.sqrt(np.clip(np.diag(cov), 0, None))
+    return phi, sigma
+
+
+#: Weight of the prior on the fixed (not identifiable) parameters in the consistent estimate, per
+#: tolerance²: 100× the data's curvature there at most (σ > tolerance), so they stay at their
+#: least-squares values to ~0.1 tolerance unless the constraints move them.
+FIXED_WEIGHT = 1e2
+
+
+def _consistent(a: np.ndarray, y: np.ndarray, prior: np.ndarray, free: np.ndarray, mass_range,
+                noise_var: float, regularisation: float) -> np.ndarray:
+    import cvxpy as cp
+
+    from urident.ident.estimate_consistent import ConsistentSolveError
+    from urident.ident.estimate_ols import reduce_ls
+
+    col = np.linalg.norm(a, axis=0)
+    col[col == 0] = 1.0
+    r_, z = reduce_ls(a / col, y)
+    s = np.maximum(np.abs(prior), 1e-3)
+    s[0] = max(abs(prior[0]), 0.1)
+    s[1:4] = np.maximum(s[1:4], 1e-3 * s[0])
+    weight = np.where(free, regularisation / s ** 2, FIXED_WEIGHT / _tolerances(prior) ** 2)
+    phi = cp.Variable(10)
+    objective = (cp.sum_squares(r_ @ cp.multiply(col, phi) - z) / noise_var
+                 + cp.sum(cp.multiply(weight, cp.square(phi - prior))))
+    m, hx, hy, hz, jxx, jyy, jzz, jyz, jxz, jxy = (phi[k] for k in range(10))
+    pm = cp.Variable((4, 4), PSD=True)
+    cons = [pm[0, 0] == (-jxx + jyy + jzz) / 2, pm[1, 1] == (jxx - jyy + jzz) / 2,
+            pm[2, 2] == (jxx + jyy - jzz) / 2, pm[0, 1] == -jxy, pm[0, 2] == -jxz, pm[1, 2] == -jyz,
+            pm[0, 3] == hx, pm[1, 3] == hy, pm[2, 3] == hz, pm[3, 3] == m]
+    low, high = mass_range if mass_range is not None else (1e-3, None)
+    cons.append(m >= max(low, 1e-6))
+    if high is not None:
+        cons.append(m <= high)
+    problem = cp.Problem(cp.Minimize(objective), cons)
+    import warnings
+
+    try:
+        with warnings.catch_warnings():   # 'optimal_inaccurate' (a point mass is on the cone's edge) is accepted
+            warnings.simplefilter("ignore", UserWarning)
+            problem.solve(solver=cp.CLARABEL)
+    except cp.error.SolverError as exc:
+        raise ConsistentSolveError(f"consistent payload estimation: solver failed ({exc})") from None
+    if problem.status not in ("optimal", "optimal_inaccurate") or phi.value is None:
+        raise ConsistentSolveError(f"consistent payload estimation: solver status {problem.status}")
+    return np.asarray(phi.value, dtype=float)
+
+
+def estimate_payload(params, spec, data, mass_range=None, regularisation: float | None = None
+                     ) -> PayloadEstimate:
+    """The payload from prepared data ``data`` (:class:`urident.ident.Prepared`, torques from the
+    drive gains chosen) with the arm's ``params`` (:class:`IdentifiedModel`) fixed (module doc)."""
+    from urident.ident.estimate import joint_weights, row_weights
+    from urident.ident.estimate_consistent import DEFAULT_REGULARISATION
+    from urident.ident.features import tool_body_regressor
+    from urident.ident.identify import predict_prepared
+    from urident.ident.metrics import error_metrics
+    from urident.model import regressor_blocks
+
+    if mass_range is not None:
+        low, high = mass_range
+        if not (0 < low < high):
+            raise PayloadError(f"mass range must be 0 < low < high, not {low:g}..{high:g} kg")
+    check_wrist_motion(data.q)
+    residual = data.tau - predict_prepared(params, spec, data)
+    y6 = tool_body_regressor(regressor_blocks(spec, data.q, data.qd, data.qdd))
+    a = (y6 @ flange_map(spec)).reshape(-1, 10)
+    y = residual.reshape(-1)
+    n = len(data)
+    if 6 * n <= 20:
+        raise PayloadError(f"{n} samples are too few to identify a payload")
+    # per-joint weights from a first fit: joints differ in noise and model error by 10x
+    free = _structural(a)
+    if not free[0]:
+        raise PayloadError("the logs do not excite the payload mass (no gravity or acceleration "
+                           "torque of a tool mass reaches the joints)")
+    phi, _ = _ls(a, y, free, np.zeros(10))
+    weights = joint_weights(a, y, phi)
+    rw = row_weights(weights, n)
+    aw, yw = a * rw[:, None], y * rw
+    free = _structural(aw)
+    phi = np.zeros(10)
+    for _ in range(20):  # drop the worst-determined parameter until all are within tolerance
+        for _ in range(3):   # fixed inertias follow the estimated mass and centre of mass
+            phi, sigma = _ls(aw, yw, free, _fixed_values(phi, free))
+        ratio = np.where(free, sigma / _tolerances(phi), 0.0)
+        ratio[0] = 0.0 if sigma[0] <= _tolerances(phi)[0] else ratio[0]
+        worst = int(np.argmax(ratio))
+        if ratio[worst] <= 1.0:
+            break
+        if worst == 0:
+            raise PayloadError(f"the logs do not determine the payload mass (σ {sigma[0]:.3g} kg "
+                               f"for {phi[0]:.3g} kg)")
+        free[worst] = False
+    ew = aw @ phi - yw
+    noise_var = max(float(ew @ ew) / max(len(yw) - int(free.sum()), 1), 1e-300)
+    identifiable = tuple(name for name, f in zip(PAYLOAD_FIELDS, free) if f)
+    ols = from_flange_vector(spec.name, phi, sigma=_sigma_dict(phi, sigma),
+                             identifiable=identifiable, method="ols",
+                             info={"weights": [float(w) for w in weights]})
+    reg = DEFAULT_REGULARISATION if regularisation is None else regularisation
+    phi_c = _consistent(aw, yw, phi, free, mass_range, noise_var, reg)
+    phi_c[4:10] += _psd_repair(phi_c)
+    cons = from_flange_vector(spec.name, phi_c, sigma=_sigma_dict(phi_c, sigma),
+                              identifiable=identifiable, method="consistent",
+                              info={"weights": [float(w) for w in weights]})
+    e_arm, rms_arm = error_metrics(residual)
+    e_pl, rms_pl = error_metrics(residual - (a @ phi_c).reshape(-1, 6))
+    return PayloadEstimate(ols, cons, rms_arm, rms_pl, e_arm, e_pl, n)
+
+
+def _psd_repair(phi: np.ndarray) -> np.ndarray:
+    """Change of the flange inertia entries that lifts the solver's tiny negative eigenvalues of
+    the inertia about the centre of mass to zero (the SDP's tolerance)."""
+    m = phi[0]
+    c = phi[1:4] / m
+    ic = _tensor(phi[4:10]) - m * (c @ c * np.eye(3) - np.outer(c, c))
+    w, v = np.linalg.eigh(ic)
+    d = (v * (np.clip(w, 0, None) - w)) @ v.T
+    return np.array([d[0, 0], d[1, 1], d[2, 2], d[1, 2], d[0, 2], d[0, 1]])
+
+
+def _sigma_dict(phi: np.ndarray, sigma: np.ndarray) -> dict:
+    """σ of mass, centre of mass and inertia about it (first order; NaN where fixed)."""
+    m = phi[0]
+    s_m = sigma[0]
+    s_c = np.sqrt((sigma[1:4] / m) ** 2 + (phi[1:4] * s_m / m ** 2) ** 2)
+    s_j = _tensor(sigma[4:10])
+    return {"mass_kg": float(s_m), "com_m": [float(v) for v in s_c],
+            "inertia_kg_m2": [[float(v) for v in row] for row in s_j]}
