@@ -191,8 +191,8 @@ def run(args: argparse.Namespace) -> int:
     model, weighting, select = model_config(args)
     config = preprocess_config(args)
     gains = resolve_drive_gains(spec, args.drive_gains)
-    recordings = [load_log_from_args(path, args, robot=spec.name) for path in args.logs]
-    data = prepare(recordings, spec, config, gains)
+    # one log loaded at a time: each recording is freed once prepared
+    data = prepare((load_log_from_args(path, args, robot=spec.name) for path in args.logs), spec, config, gains)
     cv_text = ""
     if select:
         from urident.ident.crossval import select_dahl_rad

@@ -50,7 +50,9 @@ def run(args: argparse.Namespace) -> int:
     for path, m in models:
         if m.robot != spec.name:
             raise ConfigError(f"{path}: parameters are for robot {m.robot!r}, validating on {spec.name!r}")
-    recordings = [load_log_from_args(p, args, robot=spec.name) for p in args.logs]
+    recordings = (load_log_from_args(p, args, robot=spec.name) for p in args.logs)
+    if len(models) > 1:  # each parameters file predicts the same recordings; one file streams them
+        recordings = list(recordings)
     results = []
     for path, m in models:
         check_compatible(m, spec, str(path))

@@ -107,12 +107,15 @@ def predict_recordings(params: IdentifiedModel, recordings, spec=None, *, payloa
     _check_payload(payload)
     spec = _spec_for(params, spec)
     check_compatible(params, spec)
-    recordings = [recordings] if hasattr(recordings, "current") else list(recordings)
-    if not recordings:
-        raise ConfigError("no recording to predict")
+    recordings = [recordings] if hasattr(recordings, "current") else recordings
     config = config or prediction_config(params)
     gains = resolve_drive_gains(spec, params.drive_gains if drive_gains is None else drive_gains)
-    data = concatenate([preprocess(r, spec, config, gains, causal=causal) for r in recordings])
+    # an iterator of recordings is consumed one at a time (each freed once prepared)
+    parts = [preprocess(r, spec, config, gains, causal=causal) for r in recordings]
+    if not parts:
+        raise ConfigError("no recording to predict")
+    data = concatenate(parts)
+    del parts
     return Prediction(data, predict_prepared(params, spec, data), params, config, causal)
 
 
