@@ -154,15 +154,19 @@ def reduce_blocks(spec, model, data, edges, targets=None, chunk: int | None = No
     block boundaries, as in the whole regressor)."""
     from urident.ident.design import CHUNK_SAMPLES, design_chunks
 
+    from urident.progress import Progress
+
     y = data.tau[:, :, None] if targets is None else np.asarray(targets, float)
     edges = [int(e) for e in edges]
     accs = [Accumulator() for _ in edges[:-1]]
-    for a, b, blocks in design_chunks(spec, model, data.q, data.qd, data.qdd, data.segment, data.t,
-                                      chunk or CHUNK_SAMPLES):
-        for i, acc in enumerate(accs):
-            lo, hi = max(a, edges[i]), min(b, edges[i + 1])
-            if lo < hi:
-                acc.add(blocks[lo - a:hi - a], y[lo:hi])
+    with Progress("identification: regressor (samples)", len(data)) as progress:
+        for a, b, blocks in design_chunks(spec, model, data.q, data.qd, data.qdd, data.segment, data.t,
+                                          chunk or CHUNK_SAMPLES):
+            for i, acc in enumerate(accs):
+                lo, hi = max(a, edges[i]), min(b, edges[i + 1])
+                if lo < hi:
+                    acc.add(blocks[lo - a:hi - a], y[lo:hi])
+            progress.advance(b - a)
     return [acc.result() for acc in accs]
 
 

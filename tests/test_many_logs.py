@@ -1,0 +1,105 @@
+"""Many logs at once (directories, globs, --logs-from lists) and the progress line."""
+
+from __future__ import annotations
+
+import io
+import shutil
+from pathlib import Path
+
+import pytest
+
+from urident.cli.main import main
+from urident.errors import ConfigError
+from urident.logs.cli_args import expand_log_paths, logs_from_args
+from urident.progress import Progress, progress_iter
+
+REPO = Path(__file__).resolve().parent.parent
+SAMPLE = REPO / "logs" / "sample_ident.csv"
+
+
+def _copy_log(dst: Path) -> Path:
+    shutil.copy(SAMPLE, dst.with_suffix(".csv"))
+    shutil.copy(SAMPLE.with_suffix(".yaml"), dst.with_suffix(".yaml"))
+    return dst.with_suffix(".csv")
+
+
+def test_expand_directory_glob_and_bag(tmp_path):
+    d = tmp_path / "runs"
+    d.mkdir()
+    b = _copy_log(d / "b")
+    a = _copy_log(d / "a")
+    bag = d / "c_bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    (d / "notes.txt").write_text("x")
+    assert expand_log_paths([str(d)]) == [str(a), str(b), str(bag)]   # name order; a bag is one log
+    assert expand_log_paths([str(d / "*.csv")]) == [str(a), str(b)]
+    assert expand_log_paths([str(bag)]) == [str(bag)]
+    with pytest.raises(ConfigError, match="no log matches"):
+        expand_log_paths([str(d / "*.nope")])
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with pytest.raises(ConfigError, match="holds no log"):
+        expand_log_paths([str(empty)])
+    with pytest.raises(ConfigError, match="no LOG given"):
+        logs_from_args([], [])
+
+
+def test_identify_from_directory_and_list_reports_every_log(tmp_path, capsys):
+    d = tmp_path / "runs"
+    d.mkdir()
+    logs = [_copy_log(d / n) for n in ("r1", "r2")]
+    listing = tmp_path / "list.txt"
+    listing.write_text("# two runs\nruns/r1.csv\n\nruns/r2.csv  # second\n")
+    out1, out2 = tmp_path / "p1.yaml", tmp_path / "p2.yaml"
+    assert main(["identify", str(d), "--robot", "ur5", "--out", str(out1)]) == 0
+    text1 = capsys.readouterr().out
+    assert main(["identify", "--logs-from", str(listing), "--robot", "ur5", "--out", str(out2)]) == 0
+    text2 = capsys.readouterr().out
+    assert "logs used (2):" in text1 and "logs used (2):" in text2
+    for log in logs:
+        assert str(log) in text1
+    assert text1.count("sha256 ") == 2
+    # the same two logs, so the same parameters (the seam between runs is never differentiated)
+    assert out1.read_text().split("provenance")[0] == out2.read_text().split("provenance")[0]
+
+
+def test_logs_from_errors(tmp_path, capsys):
+    missing = tmp_path / "nope.txt"
+    assert _exit(["identify", "--logs-from", str(missing), "--robot", "ur5", "--out", str(tmp_path / "p.yaml")]) == 2
+    assert "--logs-from" in capsys.readouterr().err
+    blank = tmp_path / "blank.txt"
+    blank.write_text("# nothing\n\n")
+    assert _exit(["identify", "--logs-from", str(blank), "--robot", "ur5", "--out", str(tmp_path / "p.yaml")]) == 2
+    assert "lists no log" in capsys.readouterr().err
+    assert main(["identify", "--robot", "ur5", "--out", str(tmp_path / "p.yaml")]) == 2
+    assert "no LOG given" in capsys.readouterr().err
+
+
+def _exit(argv) -> int:
+    try:
+        return main(argv)
+    except SystemExit as exc:
+        return int(exc.code)
+
+
+class _Tty(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_progress_only_on_a_terminal():
+    pipe = io.StringIO()
+    assert list(progress_iter(range(5), "loading", stream=pipe, delay=0, interval=0)) == list(range(5))
+    assert pipe.getvalue() == ""
+    tty = _Tty()
+    with Progress("loading logs", total=4, stream=tty, delay=0, interval=0) as p:
+        for _ in range(4):
+            p.advance()
+    text = tty.getvalue()
+    assert "\rloading logs: 1/4 (25 %)" in text and "4/4 (100 %)" in text
+    assert text.endswith("\r")   # the line is cleared at the end
+    quiet = _Tty()
+    with Progress("short", total=2, stream=quiet, delay=60) as p:   # work shorter than the delay
+        p.advance(2)
+    assert quiet.getvalue() == ""
