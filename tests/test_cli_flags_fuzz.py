@@ -116,6 +116,8 @@ def _bad_values(action: argparse.Action) -> st.SearchStrategy[str]:
         return st.one_of(always, st.sampled_from(["4.1", "5", "6.0.0", "5.-1", "5.1.2.3.4"]))
     if kind == "_parse_fault":
         return st.one_of(always, st.sampled_from(["boom@1", "drop@x", "drop@-1", "stale@1:-2"]))
+    if kind == "log_list_file":   # a missing file, a directory, an empty list
+        return st.sampled_from(["/nonexistent/logs.txt", "/", "/dev/null"])
     if kind in ("finite_float", "seed", "checked", "parse_column_map"):
         return always
     raise AssertionError(f"{action.option_strings[0]}: no bad values known for validator {kind!r}")

@@ -103,3 +103,37 @@ def test_progress_only_on_a_terminal():
     with Progress("short", total=2, stream=quiet, delay=60) as p:   # work shorter than the delay
         p.advance(2)
     assert quiet.getvalue() == ""
+
+
+def test_view_sends_a_decimated_series_and_keeps_full_metrics(tmp_path):
+    import numpy as np
+
+    from urident.ident.metrics import error_metrics
+    from urident.logs.recording import Recording
+    from urident.model import load_robot
+    from urident.viz import close_recording, open_recording, read_rrd
+    from urident.viz.replay import MAX_DISPLAY_SAMPLES, display_stride, log_recording_comparison
+
+    spec = load_robot("ur5e")
+    n = 2 * MAX_DISPLAY_SAMPLES + 7
+    t = np.arange(n) * 0.002
+    rng = np.random.default_rng(0)
+    q = rng.normal(0, 0.1, (n, 6))
+    tau_m = rng.normal(size=(n, 6))
+    tau_p = tau_m + 0.1 * rng.normal(size=(n, 6))
+    recording = Recording(t=t, q=q, qd=np.zeros((n, 6)), current=np.zeros((n, 6)), target_q=q + 1e-3)
+    out = tmp_path / "big.rrd"
+    rec = open_recording("urident_test", save=out)
+    metrics = log_recording_comparison(rec, spec, recording, t, q, tau_m, tau_p, robot_path=None)
+    close_recording(rec)
+    contents = read_rrd(out)
+    k = display_stride(n)
+    assert k == 3
+    times, values = contents.scalars(f"torque/{spec.joint_names[0]}/residual")
+    assert len(values) == len(range(0, n, k)) <= MAX_DISPLAY_SAMPLES
+    np.testing.assert_allclose(values, (tau_m - tau_p)[::k, 0])
+    _, tracking = contents.scalars(f"tracking/{spec.joint_names[0]}")
+    assert len(tracking) == len(values)
+    e_n, rms = error_metrics(tau_p - tau_m)   # metrics from every sample, not the drawn ones
+    assert metrics["e_N"] == pytest.approx(e_n)
+    assert metrics[f"rms/{spec.joint_names[0]}"] == pytest.approx(rms[0])
