@@ -24,8 +24,8 @@ LOG_S = 20.0     # seconds per simulated log
 RATE_HZ = 500.0
 
 
-def measure(argv: list[str]) -> tuple[float, float, int]:
-    """(wall s, peak RSS MB, exit code) of ``urident argv`` in a subprocess."""
+def measure(argv: list[str]) -> tuple[float, float, int, float]:
+    """(wall s, peak RSS MB, exit code, CPU s) of ``urident argv`` in a subprocess."""
     env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     t0 = time.perf_counter()
     proc = subprocess.Popen([sys.executable, "-m", "urident.cli.main", *argv], env=env,
@@ -36,7 +36,7 @@ def measure(argv: list[str]) -> tuple[float, float, int]:
     proc.returncode = os.waitstatus_to_exitcode(status)
     if proc.returncode:
         sys.stderr.write(stderr.decode(errors="replace")[-2000:])
-    return wall, usage.ru_maxrss / 1024.0, proc.returncode
+    return wall, usage.ru_maxrss / 1024.0, proc.returncode, usage.ru_utime + usage.ru_stime
 
 
 def main() -> None:
@@ -53,7 +53,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         for name in ("ident", "valid"):
-            wall, rss, rc = measure(["simulate", "--trajectory", str(REPO / f"experiments/ur5e_{name}.yaml"),
+            wall, rss, rc, _ = measure(["simulate", "--trajectory", str(REPO / f"experiments/ur5e_{name}.yaml"),
                                      "--out", str(tmp / name), "--effects", "realistic"])
             if rc:
                 raise SystemExit(f"simulate failed ({rc})")
@@ -65,11 +65,12 @@ def main() -> None:
             return [str(tmp / f"{name}.csv")] * max(1, round(minutes * 60 / LOG_S))
 
         def row(command: str, minutes: float, argv: list[str], samples: int) -> None:
-            wall, rss, rc = measure(argv)
+            wall, rss, rc, cpu = measure(argv)
             r = {"command": command, "minutes": minutes, "samples": samples, "wall_s": round(wall, 2),
-                 "peak_rss_mb": round(rss, 1), "exit": rc}
+                 "cpu_s": round(cpu, 2), "peak_rss_mb": round(rss, 1), "exit": rc}
             results.append(r)
-            print(f"{command:9s} {minutes:5g} min  {samples:9d} samples  {wall:7.1f} s  {rss:7.0f} MB"
+            print(f"{command:9s} {minutes:5g} min  {samples:9d} samples  {wall:7.1f} s wall  {cpu:7.1f} s CPU  "
+                  f"{rss:7.0f} MB"
                   + ("" if rc == 0 else f"  exit {rc}"), flush=True)
 
         per_log = int(LOG_S * RATE_HZ) + 1
