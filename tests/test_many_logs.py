@@ -137,3 +137,20 @@ def test_view_sends_a_decimated_series_and_keeps_full_metrics(tmp_path):
     e_n, rms = error_metrics(tau_p - tau_m)   # metrics from every sample, not the drawn ones
     assert metrics["e_N"] == pytest.approx(e_n)
     assert metrics[f"rms/{spec.joint_names[0]}"] == pytest.approx(rms[0])
+
+
+def test_gap_takes_a_directory_and_a_list_and_lists_every_log(tmp_path, capsys):
+    ident_dir = tmp_path / "ident"
+    ident_dir.mkdir()
+    ident = _copy_log(ident_dir / "run1")
+    shutil.copy(REPO / "logs" / "sample_valid.csv", tmp_path / "valid.csv")
+    shutil.copy(REPO / "logs" / "sample_valid.yaml", tmp_path / "valid.yaml")
+    listing = tmp_path / "valid.txt"
+    listing.write_text("valid.csv\n")
+    assert main(["gap", "--robot", "ur5", "--ident", str(ident_dir), "--valid-from", str(listing),
+                 "--max-effects", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "identification logs used (1):" in out and str(ident) in out
+    assert "validation logs used (1):" in out and str(tmp_path / "valid.csv") in out
+    assert main(["gap", "--robot", "ur5", "--ident", str(ident_dir)]) == 2
+    assert "no --valid given" in capsys.readouterr().err
