@@ -154,3 +154,16 @@ def test_gap_takes_a_directory_and_a_list_and_lists_every_log(tmp_path, capsys):
     assert "validation logs used (1):" in out and str(tmp_path / "valid.csv") in out
     assert main(["gap", "--robot", "ur5", "--ident", str(ident_dir)]) == 2
     assert "no --valid given" in capsys.readouterr().err
+
+
+def test_working_line_only_on_a_terminal():
+    import time
+
+    from urident.progress import Working
+
+    tty, pipe = _Tty(), io.StringIO()
+    for stream in (tty, pipe):
+        with Working("diagnosis", stream=stream, delay=0, interval=0.05):
+            time.sleep(0.3)
+    assert "\rdiagnosis: 0 s" in tty.getvalue() and tty.getvalue().endswith("\r")
+    assert pipe.getvalue() == ""

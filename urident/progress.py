@@ -82,3 +82,35 @@ def progress_iter(items: Iterable[T], what: str, total: int | None = None,
         for item in items:
             yield item
             p.advance()
+
+
+class Working:
+    """A progress line without steps: ``what: 12 s`` refreshed every second while the block runs
+    (work whose steps live elsewhere, e.g. the gap diagnosis); silent off a terminal."""
+
+    def __init__(self, what: str, stream: TextIO | None = None, delay: float = 2.0,
+                 interval: float = 1.0) -> None:
+        import threading
+
+        self._progress = Progress(what, None, stream, delay, 0.0)
+        self._interval = interval
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True) if self._progress.enabled else None
+
+    def _run(self) -> None:
+        p = self._progress
+        while not self._stop.wait(self._interval):
+            elapsed = time.monotonic() - p._start
+            if elapsed >= p._delay:
+                p._write(f"{p.what}: {elapsed:.0f} s")
+
+    def __enter__(self) -> "Working":
+        if self._thread is not None:
+            self._thread.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join()
+        self._progress.close()

@@ -94,6 +94,7 @@ def run(args: argparse.Namespace) -> int:
     from urident.gap.candidates import EFFECTS
     from urident.logs.cli_args import logs_from_args
     from urident.model import load_robot
+    from urident.progress import Working
 
     options.check_rerun_args(args)
     options.output_path("--json-out", args.json_out, args.overwrite)
@@ -112,7 +113,8 @@ def run(args: argparse.Namespace) -> int:
                       spec.name, "identification")
     valid = _load_all(logs_from_args(args.valid, args.valid_from, "--valid"), args, args.valid_rows,
                       spec.name, "validation")
-    result = diagnose(ident, valid, spec, params=params, drive_gains=drive_gains, config=config)
+    with Working("gap: diagnosis"):
+        result = diagnose(ident, valid, spec, params=params, drive_gains=drive_gains, config=config)
     print(format_report(result))
     print(_logs_used(ident, "identification logs used"))
     print(_logs_used(valid, "validation logs used"))
