@@ -51,7 +51,8 @@ def run(args: argparse.Namespace) -> int:
     for path, m in models:
         if m.robot != spec.name:
             raise ConfigError(f"{path}: parameters are for robot {m.robot!r}, validating on {spec.name!r}")
-    recordings = (load_log_from_args(p, args, robot=spec.name) for p in progress_iter(args.logs, "loading logs"))
+    recordings = (load_log_from_args(p, args, robot=spec.name)
+                  for p in progress_iter(args.logs, "loading logs"))
     if len(models) > 1:  # each parameters file predicts the same recordings; one file streams them
         recordings = list(recordings)
     results = []
