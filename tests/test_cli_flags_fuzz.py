@@ -130,6 +130,8 @@ def _bad_values(action: argparse.Action) -> st.SearchStrategy[str]:
         return st.one_of(always, st.sampled_from(["ur", "_ur_", "1_", "u r_"]))
     if kind == "ros_topic":
         return st.one_of(always, st.sampled_from(["joint_states", "/", "//a", "/a/", "/1a", "/a b"]))
+    if kind == "log_list_file":   # a missing file, a directory, an empty list
+        return st.sampled_from(["/nonexistent/logs.txt", "/", "/dev/null"])
     if kind in ("finite_float", "seed", "checked", "parse_column_map"):
         return always
     raise AssertionError(f"{action.option_strings[0]}: no bad values known for validator {kind!r}")

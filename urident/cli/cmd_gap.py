@@ -25,9 +25,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "controller's target moment, its agreement with the measured torque and with "
                     "the identified rigid-body model is shown beside.")
     p.add_argument("--robot", required=True, help="robot name or robot file")
-    p.add_argument("--ident", nargs="+", default=None, metavar="LOG",
-                   help="identification log(s) (required unless --sim)")
-    p.add_argument("--valid", nargs="+", required=True, metavar="LOG", help="validation log(s)")
+    p.add_argument("--ident", nargs="+", default=[], metavar="LOG",
+                   help="identification log(s), directories of logs or globs (required unless --sim)")
+    p.add_argument("--valid", nargs="+", default=[], metavar="LOG",
+                   help="validation log(s), directories of logs or globs")
     p.add_argument("--params", metavar="FILE", default=None,
                    help="baseline parameters (PARAMS.yaml of 'urident identify') instead of "
                         "identifying them on the --ident logs")
@@ -69,19 +70,34 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=options.seed, default=0, help="bootstrap seed (default 0)")
     options.add_rerun_arguments(p, "residual maps and comparison")
     from urident.logs import add_log_arguments
+    from urident.logs.cli_args import add_logs_from_argument
 
     add_log_arguments(p)
+    add_logs_from_argument(p, "--ident-from", "ident_from", "identification logs")
+    add_logs_from_argument(p, "--valid-from", "valid_from", "validation logs")
     p.set_defaults(func=run)
 
 
-def _load_all(paths, args, rows_text, robot):
+def _load_all(paths, args, rows_text, robot, what):
     from urident.logs import load_log_from_args
+    from urident.progress import progress_iter
 
     a = args
     if rows_text is not None:
         a = copy.copy(args)
         a.log_rows = rows_text
-    return [load_log_from_args(path, a, robot=robot) for path in paths]
+    return [load_log_from_args(path, a, robot=robot) for path in progress_iter(paths, f"loading {what} logs")]
+
+
+def _logs_used(recordings, title: str) -> str:
+    from urident.ident.preprocess import file_sha256
+
+    lines = [f"{title} ({len(recordings)}):"]
+    for rec in recordings:
+        rows = (rec.metadata or {}).get("rows")
+        rows = "" if rows is None else f" rows {rows[0]}-{rows[1]},"
+        lines.append(f"  {rec.source}:{rows} {len(rec.t)} samples, sha256 {file_sha256(rec.source) or '-'}")
+    return "\n".join(lines)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -89,7 +105,9 @@ def run(args: argparse.Namespace) -> int:
 
     from urident.gap import GapConfig, diagnose, format_report
     from urident.gap.candidates import EFFECTS
+    from urident.logs.cli_args import logs_from_args
     from urident.model import load_robot
+    from urident.progress import Working
 
     options.check_rerun_args(args)
     options.output_path("--json-out", args.json_out, args.overwrite)
@@ -112,14 +130,16 @@ def run(args: argparse.Namespace) -> int:
 
         params = load_params(args.params)
     drive_gains = None if args.drive_gains is None else np.array(args.drive_gains)
-    ident = _load_all(args.ident, args, args.ident_rows, spec.name)
-    valid = _load_all(args.valid, args, args.valid_rows, spec.name)
-    check = None
+    ident = _load_all(logs_from_args(args.ident, args.ident_from, "--ident"), args, args.ident_rows,
+                      spec.name, "identification")
+    valid = _load_all(logs_from_args(args.valid, args.valid_from, "--valid"), args, args.valid_rows,
+                      spec.name, "validation")
     if args.check:
         _refuse_reused(args)
-        check_logs = _load_all(args.check, args, args.check_rows, spec.name)
-    result = diagnose(ident, valid, spec, params=params, drive_gains=drive_gains, config=config,
-                      payload=options.load_payload_arg(args, spec))
+        check_logs = _load_all(args.check, args, args.check_rows, spec.name, "check")
+    with Working("gap: diagnosis"):
+        result = diagnose(ident, valid, spec, params=params, drive_gains=drive_gains, config=config,
+                          payload=options.load_payload_arg(args, spec))
     print(format_report(result))
     if args.check:
         from urident.gap.check import check_findings, format_check
@@ -127,6 +147,8 @@ def run(args: argparse.Namespace) -> int:
         check = check_findings(result, check_logs, spec, drive_gains=drive_gains, params=params)
         print()
         print(format_check(check))
+    print(_logs_used(ident, "identification logs used"))
+    print(_logs_used(valid, "validation logs used"))
     note = spec.nominal_note(None if drive_gains is None else ("inertia_com", "rotor_inertia",
                                                               "viscous_friction", "coulomb_friction"))
     if note:

@@ -95,13 +95,15 @@ def preprocess_config(args: argparse.Namespace, trim_default: bool = True):
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     from urident.logs import add_log_arguments
+    from urident.logs.cli_args import add_logs_from_argument
 
     p = subparsers.add_parser(
         "identify", help="identify dynamic parameters from logs",
         description="Identify base parameters (paper eq. 19-21) from one or more logs. With "
                     "--method all, --out receives the consistent estimate and PARAMS.ols.yaml / "
                     "PARAMS.bounded.yaml the others; a comparison table goes to stdout.")
-    p.add_argument("logs", nargs="+", metavar="LOG", help="log files (urident, ur_rtde or --format preset)")
+    p.add_argument("logs", nargs="*", metavar="LOG",
+                   help="log files (urident, ur_rtde or --format preset), directories of logs or globs")
     p.add_argument("--robot", required=True, help="robot name (urident model --list) or robot file")
     p.add_argument("--out", required=True, metavar="PARAMS.yaml", help="parameters file to write")
     p.add_argument("--method", choices=("ols", "bounded", "consistent", "all"), default="ols",
@@ -116,6 +118,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_preprocess_arguments(p, trim_default=True)
     options.add_payload_argument(p, "the logs carry it; its torque is removed and the arm alone identified")
     add_log_arguments(p)
+    add_logs_from_argument(p)
     options.add_rerun_arguments(p, "fit")
     p.set_defaults(func=run)
 
@@ -170,8 +173,11 @@ def run(args: argparse.Namespace) -> int:
     from urident.ident.estimate_consistent import DEFAULT_REGULARISATION
     from urident.ident.report import comparison_report
     from urident.ident.torque import resolve_drive_gains
+    from urident.ident.report import logs_used
     from urident.logs import load_log_from_args
+    from urident.logs.cli_args import logs_from_args
     from urident.model import load_robot
+    from urident.progress import progress_iter
 
     methods = ("ols", "bounded", "consistent") if args.method == "all" else (args.method,)
     if args.urdf and "consistent" not in methods:
@@ -188,12 +194,22 @@ def run(args: argparse.Namespace) -> int:
     options.output_dir_files("--png", args.png, [f"fit_{m}.png" for m in methods] + ["base_parameters.png"],
                              args.overwrite)
     options.check_rerun_args(args)  # a missing viewer or a bad --save fails at once
+    paths = logs_from_args(args.logs, args.logs_from)
     spec = load_robot(args.robot)
     model, weighting, select = model_config(args)
     config = preprocess_config(args)
     gains = resolve_drive_gains(spec, args.drive_gains)
-    recordings = [load_log_from_args(path, args, robot=spec.name) for path in args.logs]
-    data = prepare(recordings, spec, config, gains)
+    from urident.ident.torque import describe_signal
+
+    signals = []  # which signal gave each log's torques, said before the recording is freed
+
+    def loaded():
+        for path in progress_iter(paths, "loading logs"):
+            recording = load_log_from_args(path, args, robot=spec.name)
+            signals.append(describe_signal(recording))
+            yield recording
+
+    data = prepare(loaded(), spec, config, gains)  # one log at a time, each freed once prepared
     payload = options.load_payload_arg(args, spec)
     if payload is not None:
         from urident.ident.payload import without_payload
@@ -217,13 +233,12 @@ def run(args: argparse.Namespace) -> int:
             save_params(models[m], sibling(out, m), overwrite=args.overwrite)
             written.append(str(sibling(out, m)))
     text = comparison_report(models)
-    from urident.ident.torque import describe_signal
-
-    text = "\n".join(describe_signal(r) for r in recordings) + "\n" + text
+    text = "\n".join(signals) + "\n" + text
     if preset_name(args):
         text = f"preset {preset_name(args)}\n" + text
     if cv_text:
         text = cv_text + "\n" + text
+    text = text + "\n" + logs_used(data.provenance)
     priors = ("inertia_com", "rotor_inertia", "viscous_friction", "coulomb_friction")
     note = spec.nominal_note(priors + (("torque_constant", "gear_ratio") if args.drive_gains is None else ()))
     if note:  # torques from currents use the file's torque constants; priors and bounds its values

@@ -41,6 +41,7 @@ def run(args: argparse.Namespace) -> int:
     from urident.ident.identify import check_compatible
     from urident.logs import load_log_from_args
     from urident.model import load_robot
+    from urident.progress import progress_iter
 
     options.output_path("--json-out", args.json_out, args.overwrite)
     options.output_dir_files("--png", args.png, [_png_name(p) for p in args.params], args.overwrite)
@@ -52,7 +53,10 @@ def run(args: argparse.Namespace) -> int:
         if m.robot != spec.name:
             raise ConfigError(f"{path}: parameters are for robot {m.robot!r}, validating on {spec.name!r}")
     payload = options.load_payload_arg(args, spec)
-    recordings = [load_log_from_args(p, args, robot=spec.name) for p in args.logs]
+    recordings = (load_log_from_args(p, args, robot=spec.name)
+                  for p in progress_iter(args.logs, "loading logs"))
+    if len(models) > 1:  # each parameters file predicts the same recordings; one file streams them
+        recordings = list(recordings)
     results = []
     for path, m in models:
         check_compatible(m, spec, str(path))

@@ -373,3 +373,25 @@ def load_payload_arg(args: argparse.Namespace, spec):
     payload = load_payload(path, spec)
     print(f"payload {path}: {payload.describe()}", file=__import__("sys").stderr)
     return payload
+
+
+def log_list_file(text: str) -> tuple[str, ...]:
+    """``--logs-from FILE``: the logs listed in FILE, one path (or directory, or glob) a line;
+    blank lines and ``#`` comments skipped, relative paths taken from FILE's directory."""
+    path = Path(text)
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except FileNotFoundError:
+        raise argparse.ArgumentTypeError(f"no such file: {shown(text)!r}") from None
+    except IsADirectoryError:
+        raise argparse.ArgumentTypeError(f"{shown(text)!r} is a directory, not a list of logs") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise argparse.ArgumentTypeError(f"cannot read {shown(text)!r}: {exc}") from None
+    out = []
+    for line in lines:
+        item = line.split("#", 1)[0].strip()
+        if item:
+            out.append(item if Path(item).is_absolute() else str(path.parent / item))
+    if not out:
+        raise argparse.ArgumentTypeError(f"{shown(text)!r} lists no log")
+    return tuple(out)

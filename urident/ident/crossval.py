@@ -15,11 +15,11 @@ from typing import Iterable
 
 import numpy as np
 
-from urident.ident.design import ModelConfig, design_matrix, nonnegative_mask
-from urident.ident.estimate_bounded import estimate_bounded
-from urident.ident.estimate_ols import estimate_ols
-from urident.ident.metrics import error_metrics
+from urident.ident.design import ModelConfig, nonnegative_mask
+from urident.ident.estimate_bounded import estimate_bounded_reduced
+from urident.ident.estimate_ols import estimate_ols_reduced
 from urident.ident.preprocess import Prepared
+from urident.ident.reduced import merge, reduce_blocks
 
 
 @dataclass(frozen=True)
@@ -36,24 +36,22 @@ def cross_validate(spec, data: Prepared, model: ModelConfig, weighting: str = "n
     """Blocked CV score. ``target`` (N, 6): the torques held-out blocks are scored against
     (default ``data.tau``; pass the unfiltered torques when ``data.tau`` was low-passed, so that
     a torque filter is judged by how well it predicts the raw measurement)."""
-    w = design_matrix(spec, model, data.q, data.qd, data.qdd, data.segment, data.t)
-    y = data.tau.reshape(-1)
-    y_target = y if target is None else np.asarray(target, dtype=float).reshape(-1)
     n = len(data)
     edges = np.linspace(0, n, folds + 1).astype(int)
-    names = [str(k) for k in range(w.shape[1])]
-    err = np.zeros((n, 6))
+    # one reduced problem per block, with the training torques and the scoring target as columns
+    y = data.tau if target is None else np.asarray(target, dtype=float).reshape(n, 6)
+    targets = np.stack([data.tau, y], axis=2)
+    parts = reduce_blocks(spec, model, data, edges, targets)
+    names = [str(k) for k in range(parts[0].n_params)]
+    sq = np.zeros(6)
     for k in range(folds):
-        test = np.zeros(n, dtype=bool)
-        test[edges[k]:edges[k + 1]] = True
-        rows_test = np.repeat(test, 6)
-        wt, yt = w[~rows_test], y[~rows_test]
+        train = merge(p for i, p in enumerate(parts) if i != k).select(0)
         if method == "bounded":
-            est = estimate_bounded(wt, yt, names, nonnegative_mask(spec, model), weighting)
+            est = estimate_bounded_reduced(train, names, nonnegative_mask(spec, model), weighting)
         else:
-            est = estimate_ols(wt, yt, names, weighting)
-        err[test] = (w[rows_test] @ est.values - y_target[rows_test]).reshape(-1, 6)
-    rms = error_metrics(err)[1]
+            est = estimate_ols_reduced(train, names, weighting)
+        sq += parts[k].residual_sq(est.values, target=1)
+    rms = np.sqrt(sq / n)
     return CVScore(model, weighting, method, float(rms.mean()), rms)
 
 

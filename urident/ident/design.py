@@ -174,8 +174,9 @@ def design_blocks(spec, config: ModelConfig, q, qd, qdd, segment=None, t=None,
     base = base_for(spec, config.reduced)
     blocks = regressor_blocks(spec, q, qd, qdd, config.friction_eps)
     joints = np.arange(6)
+    dahl = functools.cache(lambda: _dahl(config, q, qd, t, segment, state))  # once: it advances state
     if config.coulomb == "dahl":
-        blocks[:, joints, COULOMB_OFFSET + joints] = _dahl(config, q, qd, t, segment, state)
+        blocks[:, joints, COULOMB_OFFSET + joints] = dahl()
     elif config.coulomb == "hold":
         blocks[:, joints, COULOMB_OFFSET + joints] = _hold(config, qd, segment, state)
     out = [blocks[:, :, base.independent]]
@@ -192,10 +193,39 @@ def design_blocks(spec, config: ModelConfig, q, qd, qdd, segment=None, t=None,
         elif x == "sqrtvisc":
             values = features.sqrt_viscous(qd)
         else:
-            values = _dahl(config, q, qd, t, segment, state)
+            values = dahl()
         extra[:, joints, joints] = values
         out.append(extra)
     return np.concatenate(out, axis=2)
+
+
+CHUNK_SAMPLES = 8192   # samples per regressor chunk: ≈ 8192·6·78·8 B = 31 MB of blocks at a time
+
+
+def design_chunks(spec, config: ModelConfig, q, qd, qdd, segment=None, t=None,
+                  chunk: int = CHUNK_SAMPLES):
+    """Yield ``(start, stop, blocks)``: :func:`design_blocks` of samples [start, stop) equal to the
+    rows of the whole-array call, at most ``chunk`` samples at a time (bounded memory). A chunk never
+    spans two segments; within one, the next chunk restarts one sample early with the friction
+    states of that sample (``state``) and drops it, so history-driven states continue exactly."""
+    q, qd, qdd = (np.asarray(x, dtype=float) for x in (q, qd, qdd))
+    t = None if t is None else np.asarray(t, dtype=float)
+    n = len(q)
+    if chunk < 2:
+        raise ValueError("chunk must hold at least two samples")
+    seg = np.zeros(n, dtype=int) if segment is None else np.asarray(segment)
+    bounds = np.r_[0, np.flatnonzero(np.diff(seg) != 0) + 1, n]
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        state: dict = {}
+        start = int(a)
+        while start < b:
+            stop = int(min(start + chunk, b))
+            lo = start - 1 if start > a else start
+            part = slice(lo, stop)
+            blocks = design_blocks(spec, config, q[part], qd[part], qdd[part], None,
+                                   None if t is None else t[part], state)
+            yield start, stop, blocks[start - lo:]
+            start = stop
 
 
 def design_matrix(spec, config: ModelConfig, q, qd, qdd, segment=None, t=None,

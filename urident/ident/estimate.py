@@ -82,3 +82,30 @@ def correlation_inflation(e: np.ndarray) -> float:
     rho = np.where(den > 0, np.sum(r[1:] * r[:-1], axis=0) / np.where(den > 0, den, 1.0), 0.0)
     rho = float(np.clip(rho.max(), 0.0, 0.999))
     return (1 + rho) / (1 - rho)
+
+
+def sigma_from_factor(r: np.ndarray, noise_var: float) -> np.ndarray:
+    """σ from the triangular factor R of the weighted regressor (RᵀR = ΘᵀΘ), as :func:`statistics`."""
+    scale = np.linalg.norm(r, axis=0)
+    scale[scale == 0] = 1.0
+    rs = r / scale
+    gram_inv = np.linalg.pinv(rs.T @ rs) / np.outer(scale, scale)
+    return np.sqrt(np.clip(np.diag(gram_inv), 0, None) * noise_var)
+
+
+def statistics_reduced(red, x: np.ndarray, weights: np.ndarray) -> dict:
+    """:func:`statistics` on a reduced problem (:mod:`urident.ident.reduced`)."""
+    ss = red.residual_sq(x)
+    dof = max(6 * red.n_samples - red.n_params, 1)
+    noise_var = float(np.asarray(weights, float) ** 2 @ ss / dof)
+    r, _ = red.combined(weights)
+    n = red.n_samples
+    return {"sigma": sigma_from_factor(r, noise_var), "noise_var": noise_var,
+            "train_rms": np.sqrt(ss / n), "train_e_n": float(np.sqrt(ss.sum()) / n)}
+
+
+def joint_weights_reduced(red, x: np.ndarray) -> np.ndarray:
+    """:func:`joint_weights` on a reduced problem."""
+    std = np.sqrt(red.residual_sq(x) / red.n_samples)
+    std = np.maximum(std, 1e-9 * max(std.max(), 1e-300))
+    return 1.0 / std

@@ -21,8 +21,9 @@ from __future__ import annotations
 import numpy as np
 
 from urident.errors import UridentError
-from urident.ident.estimate import Estimate, row_weights, statistics
-from urident.ident.estimate_ols import check_inputs, reduce_ls, resolve_weights, solve_ls
+from urident.ident.estimate import Estimate, row_weights, statistics, statistics_reduced
+from urident.ident.estimate_ols import (check_inputs, check_reduced, factor_scaled, reduce_ls, resolve_weights,
+                                       resolve_weights_reduced, solve_ls, solve_reduced)
 from urident.model.parameters import COULOMB, DRIVE, FRICTION, N_JOINTS, N_PARAMS, ROTOR, VISCOUS, body_slice
 
 DEFAULT_REGULARISATION = 1e-3
@@ -51,8 +52,6 @@ def estimate_consistent(w: np.ndarray, y: np.ndarray, names, combination: np.nda
                         ) -> Estimate:
     """``w`` = [Θ_B | Θ_X] (6N, b + nx), ``combination`` C (b, 78), ``nominal`` the robot file's
     78-vector, ``extra_nonnegative`` (nx,) which extra coefficients must be ≥ 0."""
-    import cvxpy as cp
-
     check_inputs(w, y)
     b = combination.shape[0]
     nx = w.shape[1] - b
@@ -65,6 +64,32 @@ def estimate_consistent(w: np.ndarray, y: np.ndarray, names, combination: np.nda
     x_ols = solve_ls(w, y, weights)
     e = ww @ x_ols - yw
     noise_var = max(float(e @ e) / max(len(y) - w.shape[1], 1), 1e-300)
+
+    x, p_hat, info = _solve_sdp(r_, z, col, noise_var, combination, nominal, extra_nonnegative,
+                                regularisation, nx)
+    return Estimate("consistent", tuple(names), x, weights=weights, standard=p_hat, info=info,
+                    **statistics(w, y, x, weights))
+
+
+def estimate_consistent_reduced(red, names, combination: np.ndarray, nominal: np.ndarray,
+                                extra_nonnegative: np.ndarray, weighting: str = "none",
+                                regularisation: float = DEFAULT_REGULARISATION) -> Estimate:
+    """:func:`estimate_consistent` on a reduced problem (:mod:`urident.ident.reduced`)."""
+    check_reduced(red)
+    nx = red.n_params - combination.shape[0]
+    weights = resolve_weights_reduced(red, weighting)
+    r_, z, col = factor_scaled(red, weights)
+    x_ols = solve_reduced(red, weights)
+    dof = max(6 * red.n_samples - red.n_params, 1)
+    noise_var = max(float(weights ** 2 @ red.residual_sq(x_ols)) / dof, 1e-300)
+    x, p_hat, info = _solve_sdp(r_, z, col, noise_var, combination, nominal, extra_nonnegative,
+                                regularisation, nx)
+    return Estimate("consistent", tuple(names), x, weights=weights, standard=p_hat, info=info,
+                    **statistics_reduced(red, x, weights))
+
+
+def _solve_sdp(r_, z, col, noise_var, combination, nominal, extra_nonnegative, regularisation, nx):
+    import cvxpy as cp
 
     nominal = np.asarray(nominal, dtype=float)
     s = parameter_scales(nominal)
@@ -100,10 +125,9 @@ def estimate_consistent(w: np.ndarray, y: np.ndarray, names, combination: np.nda
     x = combination @ p_hat
     if nx:
         x = np.concatenate([x, np.asarray(xe.value, dtype=float)])
-    return Estimate("consistent", tuple(names), x, weights=weights, standard=p_hat,
-                    info={"solver_status": problem.status, "regularisation": regularisation,
-                          "min_pseudo_inertia_eig": float(min(_pseudo_min_eig(p_hat)))},
-                    **statistics(w, y, x, weights))
+    info = {"solver_status": problem.status, "regularisation": regularisation,
+            "min_pseudo_inertia_eig": float(min(_pseudo_min_eig(p_hat)))}
+    return x, p_hat, info
 
 
 def pseudo_inertia(p10: np.ndarray) -> np.ndarray:

@@ -10,7 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from urident.errors import ConfigError
-from urident.ident.estimate import Estimate, joint_weights, row_weights, statistics
+from urident.ident.estimate import (Estimate, joint_weights, joint_weights_reduced, row_weights, statistics,
+                                   statistics_reduced)
 
 WEIGHTINGS = ("none", "joint")
 
@@ -77,3 +78,46 @@ def estimate_ols(w: np.ndarray, y: np.ndarray, names, weighting: str = "none") -
     weights = resolve_weights(w, y, weighting)
     x = solve_ls(w, y, weights)
     return Estimate("ols", tuple(names), x, weights=weights, **statistics(w, y, x, weights))
+
+
+def factor_scaled(red, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(R/scale, z, scale): the weighted reduced problem with unit-norm columns."""
+    r, z = red.combined(weights)
+    scale = red.column_norms(weights)
+    scale[scale == 0] = 1.0
+    return r / scale, z, scale
+
+
+def solve_reduced(red, weights: np.ndarray | None = None) -> np.ndarray:
+    """:func:`solve_ls` on a reduced problem: back substitution on the column-scaled factor, SVD-based
+    least squares if it is numerically singular."""
+    import scipy.linalg
+
+    r, z, scale = factor_scaled(red, np.ones(6) if weights is None else weights)
+    d = np.abs(np.diag(r))
+    if d.min() > 1e-13 * d.max():
+        x = scipy.linalg.solve_triangular(r, z)
+    else:
+        x, *_ = np.linalg.lstsq(r, z, rcond=None)
+    return x / scale
+
+
+def check_reduced(red) -> None:
+    if 6 * red.n_samples <= red.n_params:
+        raise ConfigError(f"{red.n_samples} samples are too few to identify {red.n_params} parameters")
+
+
+def resolve_weights_reduced(red, weighting: str) -> np.ndarray:
+    if weighting not in WEIGHTINGS:
+        raise ConfigError(f"weighting {weighting!r} unknown (known: {', '.join(WEIGHTINGS)})")
+    if weighting == "none":
+        return np.ones(6)
+    return joint_weights_reduced(red, solve_reduced(red))
+
+
+def estimate_ols_reduced(red, names, weighting: str = "none") -> Estimate:
+    """:func:`estimate_ols` on a reduced problem (:mod:`urident.ident.reduced`)."""
+    check_reduced(red)
+    weights = resolve_weights_reduced(red, weighting)
+    x = solve_reduced(red, weights)
+    return Estimate("ols", tuple(names), x, weights=weights, **statistics_reduced(red, x, weights))

@@ -15,13 +15,14 @@ import numpy as np
 
 from urident.errors import ConfigError
 from urident.ident.design import (ModelConfig, base_for, column_expressions, column_kinds, column_names,
-                                  design_matrix, nonnegative_mask)
+                                  design_chunks, design_matrix, nonnegative_mask)
 from urident.ident.estimate import Estimate
-from urident.ident.estimate_bounded import estimate_bounded
-from urident.ident.estimate_consistent import DEFAULT_REGULARISATION, estimate_consistent
-from urident.ident.estimate_ols import estimate_ols
+from urident.ident.estimate_bounded import estimate_bounded_reduced
+from urident.ident.estimate_consistent import DEFAULT_REGULARISATION, estimate_consistent_reduced
+from urident.ident.estimate_ols import estimate_ols_reduced
 from urident.ident.preprocess import (PreprocessConfig, Prepared, Provenance, concatenate,
                                       preprocess_pieces)
+from urident.ident.reduced import reduce_design
 
 METHODS = ("ols", "bounded", "consistent")
 
@@ -92,26 +93,27 @@ def identify_all(spec, data: Prepared | Sequence[Prepared], methods: Sequence[st
                  model: ModelConfig | None = None, weighting: str = "none",
                  regularisation: float = DEFAULT_REGULARISATION,
                  preprocess_config: PreprocessConfig | None = None) -> dict[str, IdentifiedModel]:
-    """Run several methods on the same data (one regressor). ``preprocess_config`` is only recorded."""
+    """Run several methods on the same data: one reduced problem (:mod:`urident.ident.reduced`), its
+    regressor built in chunks, so memory does not grow with the samples. ``preprocess_config`` is
+    only recorded."""
     model = model or ModelConfig()
     data = _as_prepared(data)
     for m in methods:
         if m not in METHODS:
             raise ConfigError(f"method {m!r} unknown (known: {', '.join(METHODS)}, all)")
-    w = design_matrix(spec, model, data.q, data.qd, data.qdd, data.segment, data.t)
-    y = data.tau.reshape(-1)
+    red = reduce_design(spec, model, data)
     names = column_names(spec, model)
     out = {}
     for m in methods:
         if m == "ols":
-            est = estimate_ols(w, y, names, weighting)
+            est = estimate_ols_reduced(red, names, weighting)
         elif m == "bounded":
-            est = estimate_bounded(w, y, names, nonnegative_mask(spec, model), weighting)
+            est = estimate_bounded_reduced(red, names, nonnegative_mask(spec, model), weighting)
         else:
             b = base_for(spec, model.reduced)
             nb = b.n_base
-            est = estimate_consistent(w, y, names, b.combination, spec.nominal_params,
-                                      nonnegative_mask(spec, model)[nb:], weighting, regularisation)
+            est = estimate_consistent_reduced(red, names, b.combination, spec.nominal_params,
+                                              nonnegative_mask(spec, model)[nb:], weighting, regularisation)
         out[m] = _wrap(spec, est, model, data, weighting, preprocess_config)
     return out
 
@@ -141,8 +143,13 @@ def predict(identified: IdentifiedModel, spec, q, qd, qdd, segment=None, t=None,
     models whose friction state integrates q̇ (``dahl_source='velocity'``); ``state``: see
     :func:`urident.ident.design.design_blocks` (streams). Recordings: :mod:`urident.ident.prediction`."""
     check_compatible(identified, spec)
-    w = design_matrix(spec, identified.model, q, qd, qdd, segment, t, state)
-    return (w @ identified.values).reshape(-1, 6)
+    if state is not None:
+        w = design_matrix(spec, identified.model, q, qd, qdd, segment, t, state)
+        return (w @ identified.values).reshape(-1, 6)
+    out = np.empty((len(q), 6))
+    for a, b, blocks in design_chunks(spec, identified.model, q, qd, qdd, segment, t):  # bounded memory
+        out[a:b] = blocks @ identified.values
+    return out
 
 
 def predict_prepared(identified: IdentifiedModel, spec, data: Prepared) -> np.ndarray:

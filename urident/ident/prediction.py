@@ -126,17 +126,19 @@ def predict_recordings(params: IdentifiedModel, recordings, spec=None, *, payloa
     spec = _spec_for(params, spec)
     check_compatible(params, spec)
     _check_payload(payload, spec)
-    recordings = [recordings] if hasattr(recordings, "current") else list(recordings)
-    if not recordings:
-        raise ConfigError("no recording to predict")
+    recordings = [recordings] if hasattr(recordings, "current") else recordings
     config = config or prediction_config(params)
     gains = resolve_drive_gains(spec, params.drive_gains if drive_gains is None else drive_gains)
+    # an iterator of recordings is consumed one at a time (each freed once prepared)
     parts, pieces = [], []
     for k, recording in enumerate(recordings):
         for offset, p in preprocess_pieces(recording, spec, config, gains, causal=causal):
             parts.append(p)
             pieces.append((k, offset))
+    if not parts:
+        raise ConfigError("no recording to predict")
     data = concatenate(parts)
+    del parts
     tau = predict_prepared(params, spec, data)
     if payload is not None:
         tau = tau + _payload_torque(spec, payload, data.q, data.qd, data.qdd)

@@ -32,7 +32,6 @@ every |q̇_j| is below ``rest_threshold``; decimation keeps every k-th sample af
 
 from __future__ import annotations
 
-import hashlib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Sequence
@@ -213,14 +212,13 @@ def rest_trim_range(qd: np.ndarray, threshold: float) -> tuple[int, int]:
     return int(moving[0]), int(moving[-1]) + 1
 
 
-def _sha256(path: Path | None) -> str | None:
+def file_sha256(path: Path | None) -> str | None:
+    """SHA-256 of a log file (None for a recording that has no file)."""
+    from urident.logs.sidecar import sha256_file
+
     if path is None or not Path(path).is_file():
         return None
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
+    return sha256_file(path)
 
 
 def _check_finite(name: str, x: np.ndarray, source: str) -> None:
@@ -274,7 +272,7 @@ def preprocess(recording, spec, config: PreprocessConfig | None = None,
     sl = slice(first, last, int(config.decimate))
     rows = recording.metadata.get("rows") if hasattr(recording, "metadata") else None
     prov = Provenance(source, None if rows is None else tuple(int(r) for r in rows),
-                      _sha256(recording.source), (first, last))
+                      file_sha256(recording.source), (first, last))
     return Prepared(t[sl].copy(), np.asarray(recording.q, float)[sl].copy(), qd[sl].copy(),
                     qdd[sl].copy(), torque[sl].copy(), gains, (prov,))
 

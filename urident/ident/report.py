@@ -47,3 +47,15 @@ def comparison_report(models: Mapping[str, object], validations: Mapping[str, ob
             cells.append(f"{mod.values[k]:+.4g} +- {mod.sigma[k]:.2g} ({rel_text})")
         lines.append(_row(cells, widths))
     return "\n".join(lines)
+
+
+def logs_used(provenance, title: str = "logs used") -> str:
+    """One line per log: file, the file rows selected (if any), samples used and SHA-256."""
+    provenance = tuple(provenance)
+    lines = [f"{title} ({len(provenance)}):"]
+    for p in provenance:
+        rows = "" if p.rows is None else f" rows {p.rows[0]}-{p.rows[1]},"
+        first, last = p.samples_used
+        lines.append(f"  {p.file}:{rows} {last - first} samples used [{first}, {last}), "
+                     f"sha256 {p.sha256 or '-'}")
+    return "\n".join(lines)

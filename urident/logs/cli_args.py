@@ -3,22 +3,25 @@
     add_log_arguments(parser)   # --format, --columns, --rows, --drop-bad, --topic, --effort, --signal,
                                 # --allow-aborted, --allow-gaps
     rec = load_log_from_args(args.log, args, robot=args.robot)   # refuses aborted/gapped logs unless allowed
+    paths = expand_log_paths(args.logs, "LOG")   # directories and globs → one path per log
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import glob
 import sys
 from pathlib import Path
 from typing import TextIO
 
-from urident.cli.options import checked, ros_topic, row_range
-from urident.errors import LogFormatError
+from urident.cli.options import checked, log_list_file, ros_topic, row_range
+from urident.errors import ConfigError, LogFormatError
 
 from .foreign import PRESETS, parse_column_map
 from .gaps import describe_gaps, recording_gaps
 from .reader import describe_dropped, load_log
+from .rosbag import is_bag
 from .recording import Recording
 
 
@@ -95,6 +98,48 @@ def add_log_arguments(parser: argparse.ArgumentParser) -> None:
         help="use a log with missing samples instead of refusing it; the pieces between gaps "
         "are then processed separately",
     )
+
+
+def add_logs_from_argument(parser, flag: str = "--logs-from", dest: str = "logs_from",
+                           what: str = "logs") -> None:
+    """``--logs-from FILE`` (repeatable): a file listing {what}, one path, directory or glob a line."""
+    parser.add_argument(flag, dest=dest, metavar="FILE", action="append", default=[], type=log_list_file,
+                        help=f"read {what} from FILE, one path, directory or glob a line ('#' comments)")
+
+
+LOG_SUFFIXES = (".csv",)
+
+
+def expand_log_paths(items, what: str = "LOG") -> list[str]:
+    """Logs named by ``items``: a file as given; a directory → its ``*.csv`` logs in name order (a
+    rosbag2 directory, holding ``metadata.yaml``, is one log); a glob → its matches in name order.
+    a rosbag2 ``.mcap``/``.db3`` file is one log too. A directory or glob that names no log is an error (ConfigError naming it)."""
+    out: list[str] = []
+    for item in items:
+        text = str(item)
+        p = Path(text)
+        if p.is_dir() and not is_bag(p):
+            found = sorted(str(c) for c in p.iterdir() if c.is_file() and (c.suffix in LOG_SUFFIXES or is_bag(c))
+                           or c.is_dir() and is_bag(c))
+            if not found:
+                raise ConfigError(f"{what} {text}: directory holds no log (*.csv or rosbag2 directory)")
+            out += found
+        elif glob.has_magic(text) and not p.exists():
+            found = sorted(glob.glob(text))
+            if not found:
+                raise ConfigError(f"{what} {text}: no log matches")
+            out += found
+        else:
+            out.append(text)
+    return out
+
+
+def logs_from_args(positional, lists, what: str = "LOG") -> list[str]:
+    """Expanded logs of a positional list plus every ``--logs-from`` list; at least one."""
+    items = list(positional or []) + [x for lst in (lists or []) for x in lst]
+    if not items:
+        raise ConfigError(f"no {what} given (name logs, a directory, a glob or --logs-from FILE)")
+    return expand_log_paths(items, what)
 
 
 def load_log_from_args(

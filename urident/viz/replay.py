@@ -24,6 +24,14 @@ from urident.viz.torque_views import (
 )
 
 
+MAX_DISPLAY_SAMPLES = 50_000  # per time series sent to Rerun: hours of 500 Hz data stay drawable
+
+
+def display_stride(n: int, max_samples: int = MAX_DISPLAY_SAMPLES) -> int:
+    """Every k-th sample to draw so that at most ``max_samples`` of ``n`` are sent (metrics use all)."""
+    return max(1, -(-int(n) // int(max_samples)))
+
+
 def describe_recording(recording: Any) -> str:
     """Markdown lines describing a loaded log (source, robot, samples, duration, status)."""
     lines = [f"- log: `{recording.source}`" if recording.source else "- log: (in memory)",
@@ -63,7 +71,9 @@ def log_recording_comparison(
     ``(N, 6)`` at times ``t``, tracking error when the log has ``target_q`` (``index``: the
     recording's samples shown, default all), metrics as scalars and markdown (``e_n``/``rms`` as
     computed by the caller), and the motion ``q`` decimated to ``pose_rate_hz``
-    (``robot_path=None`` skips it). Returns the metrics (``e_N``, ``rms/{joint}``, …)."""
+    (``robot_path=None`` skips it). Series are drawn at every :func:`display_stride`-th sample
+    (at most :data:`MAX_DISPLAY_SAMPLES`); metrics use every sample. Returns the metrics
+    (``e_N``, ``rms/{joint}``, …)."""
     joints = spec.joint_names
     t = np.asarray(t, dtype=float)
     tau_m = np.asarray(tau_measured, dtype=float)
@@ -71,10 +81,12 @@ def log_recording_comparison(
     if tau_p.shape != tau_m.shape or tau_m.shape != (len(t), 6):
         raise ValueError(f"measured and predicted torque must be ({len(t)}, 6), got {tau_m.shape} "
                          f"and {tau_p.shape}")
-    log_torque_comparison(rec, t, tau_m, tau_p, prefix=prefix, joint_names=joints)
+    k = display_stride(len(t))
+    log_torque_comparison(rec, t[::k], tau_m[::k], tau_p[::k], prefix=prefix, joint_names=joints)
     if getattr(recording, "target_q", None) is not None:
-        sel = slice(None) if index is None else index
-        log_joint_series(rec, "tracking", t, recording.target_q[sel] - recording.q[sel], joints)
+        sel = np.arange(len(recording.q)) if index is None else np.asarray(index)
+        sel = sel[::k]
+        log_joint_series(rec, "tracking", t[::k], recording.target_q[sel] - recording.q[sel], joints)
     metrics = torque_metrics(tau_m, tau_p, joints, e_n=e_n, rms=rms)
     t_end = float(t[-1]) if len(t) else 0.0
     log_metrics(rec, {k: v for k, v in metrics.items() if not k.startswith("rms_measured/")},
