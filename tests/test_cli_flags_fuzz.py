@@ -39,7 +39,7 @@ BASE = {
 FREE_TEXT = {"--robot", "--out", "--out-root", "--trajectory", "--config", "--params", "--urdf",
              "--report", "--png", "--json-out", "--save", "--host", "--effects", "--ident",
              "--valid", "--rerun", "--bag", "--mjcf", "--name", "--sim", "--write-sim", "--payload",
-             "--without", "--with", "--tool-capsule-from", "--check"}
+             "--without", "--with", "--tool-capsule-from", "--check", "--start-near"}
 # text no validator accepts
 ALWAYS_BAD = ["nan", "inf", "-inf", "NaN", "abc", "", " ", "1e999", "1,2,3,4,5", "0x1g", "1;2"]
 

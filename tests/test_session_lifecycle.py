@@ -238,7 +238,7 @@ def test_latency_spike_is_named_late_samples_and_recorded_as_a_gap(files):
 
     host = "127.0.0.72"
     out = files["dir"] / "latency.csv"
-    config = files["dir"] / "latency.yaml"
+    config = files["dir"] / "latency_config.yaml"  # not latency.yaml: that is the log's sidecar
     config.write_text(files["config"].read_text().replace("max_stale_periods: 250", "max_stale_periods: 50"))
     with SimControllerProcess(host=host, robot="ur5e", initial_q=NEAR_START, faults=["latency@2.5:0.2"]):
         r = run_cli(host, "ur5e", files["ur5e"], out, config, "--yes")

@@ -134,6 +134,7 @@ def run(args: argparse.Namespace) -> int:
                       spec.name, "identification")
     valid = _load_all(logs_from_args(args.valid, args.valid_from, "--valid"), args, args.valid_rows,
                       spec.name, "validation")
+    check = None
     if args.check:
         _refuse_reused(args)
         check_logs = _load_all(args.check, args, args.check_rows, spec.name, "check")

@@ -13,7 +13,7 @@ SIM_MAX_EFFECTS = 12
 
 
 def run_sim(args: argparse.Namespace, load_all, json_default) -> int:
-    """``load_all(paths, args, rows, robot)`` and ``json_default``: cmd_gap's log loader and JSON
+    """``load_all(paths, args, rows, robot, what)`` and ``json_default``: cmd_gap's log loader and JSON
     encoder hook."""
     import numpy as np
 
@@ -40,7 +40,10 @@ def run_sim(args: argparse.Namespace, load_all, json_default) -> int:
     config = GapConfig(effects=args.effects or EFFECTS, **floor, cv_min_noise_ratio=args.cv_min_noise_ratio,
                        max_effects=args.max_effects or SIM_MAX_EFFECTS, seed=args.seed)
     drive_gains = None if args.drive_gains is None else np.array(args.drive_gains)
-    valid = load_all(args.valid, args, args.valid_rows, spec.name)
+    from urident.logs.cli_args import logs_from_args
+
+    valid = load_all(logs_from_args(args.valid, args.valid_from, "--valid"), args, args.valid_rows,
+                     spec.name, "validation")
     if args.ident:
         print("note: --ident logs are not used with --sim (the simulator model is the baseline, not refitted)")
     result = diagnose_sim(valid, spec, sim, drive_gains=drive_gains, config=config)

@@ -191,7 +191,10 @@ def check_log_usable(recording: Recording, allow_aborted: bool = False,
             "the run was aborted" if status == "aborted" else
             "its writer never closed it (status: running)")
         raise LogFormatError(f"{where}: {what}; pass --allow-aborted to use it anyway")
-    gaps = recording_gaps(recording)
+    # stretches a loader excluded on purpose (a bag's protective stops) are reported, not gaps
+    excluded = recording.metadata.get("excluded") or []
+    gaps = [g for g in recording_gaps(recording)
+            if not any(g.t_before < e["start_s"] and e["end_s"] < g.t_after for e in excluded)]
     if gaps and not allow_gaps:
         raise LogFormatError(f"{where}: {describe_gaps(gaps)}; pass --allow-gaps to use it "
                              f"(the pieces between gaps are then processed separately)")
