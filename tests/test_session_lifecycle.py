@@ -17,7 +17,7 @@ import time
 import numpy as np
 import pytest
 
-from sim_helpers import dashboard
+from sim_helpers import dashboard, spawn_run
 from test_session_sim import RELAXED, NEAR_START, make_trajectory, one_line_error, run_cli
 from urident.logs import load_log, read_sidecar, sidecar_path
 from urident.simcontroller.process import SimControllerProcess
@@ -44,11 +44,7 @@ def program_states(host: str, watch_s: float = 2.0) -> set[str]:
 
 
 def start_run(host, files, out):
-    cmd = [sys.executable, "-m", "urident.cli.main", "run", "--robot", "ur5e", "--host", host,
-           "--trajectory", str(files["ur5e"]), "--out", str(out), "--config", str(files["config"]),
-           "--yes"]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            stdin=subprocess.DEVNULL)
+    proc = spawn_run(host, files, out)
     deadline = time.monotonic() + 60
     line = ""
     while "running" not in line and time.monotonic() < deadline:

@@ -20,6 +20,8 @@ from urident.logs import load_log
 from urident.model import load_robot
 from urident.simcontroller.process import SimControllerProcess
 
+from sim_helpers import spawn_run
+
 START = [0.0, -1.5708, 0.0, -1.5708, 0.0, 0.0]
 NEAR_START = [0.05, -1.45, 0.1, -1.6, 0.05, 0.0]
 # Loaded CI machines: late cycles must not decide these tests (test_session_units covers them).
@@ -141,11 +143,7 @@ def test_fault_stops_robot_keeps_log(files, fault, words):
 def interrupt_run(host, files, out, after: str, delay_s: float):
     """Start `urident run` in its own process, send it SIGINT ``delay_s`` after it printed a line
     containing ``after``; return the finished process and its stderr."""
-    cmd = [sys.executable, "-m", "urident.cli.main", "run", "--robot", "ur5e", "--host", host,
-           "--trajectory", str(files["ur5e"]), "--out", str(out), "--config", str(files["config"]),
-           "--yes"]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            stdin=subprocess.DEVNULL)
+    proc = spawn_run(host, files, out)
     deadline = time.monotonic() + 60
     line = ""
     while after not in line and time.monotonic() < deadline:

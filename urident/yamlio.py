@@ -123,6 +123,17 @@ class Fields:
         """The error to raise for ``where`` (a full key path; "" for the whole file)."""
         return self.error(f"{self.label}: {where}: {message}" if where else f"{self.label}: {message}")
 
+    def document(self, data: Any, keys: set, required: tuple, fmt: str, what: str) -> dict:
+        """The top-level mapping of a ``format: FMT`` file: not empty, only ``keys``, every
+        ``required`` key present, the right format."""
+        if data is None:
+            raise self.fail("", f"{what} is empty")
+        self.mapping(data, "", "a mapping at the top level")
+        self.keys(data, keys, "", required=required)
+        if data["format"] != fmt:
+            raise self.fail("format", f"is {str(data['format'])[:40]!r}, expected {fmt!r}")
+        return data
+
     def mapping(self, value: Any, where: str, what: str = "a mapping") -> dict:
         if not isinstance(value, dict):
             raise self.fail(where, f"expected {what}, got {_kind(value)}")

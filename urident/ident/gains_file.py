@@ -42,12 +42,7 @@ def load_gains(path) -> tuple[str, np.ndarray, np.ndarray | None]:
     path = Path(path)
     data = load_yaml(path, "drive-gains file", GainsFileError)
     f = Fields(path, GainsFileError)
-    if data is None:
-        raise f.fail("", "drive-gains file is empty")
-    f.mapping(data, "", "a mapping at the top level")
-    f.keys(data, _TOP, "", required=("format", "robot", "drive_gains"))
-    if data["format"] != FORMAT:
-        raise f.fail("format", f"is {str(data['format'])[:40]!r}, expected {FORMAT!r}")
+    f.document(data, _TOP, ("format", "robot", "drive_gains"), FORMAT, "drive-gains file")
     if data.get("version", VERSION) != VERSION:
         raise f.fail("version", f"not supported (expected {VERSION})")
     robot = f.get(data, "robot", str)

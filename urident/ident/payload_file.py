@@ -64,12 +64,7 @@ def load_payload(path, spec=None) -> Payload:
     path = Path(path)
     data = load_yaml(path, "payload file", PayloadError)
     f = Fields(path, PayloadError)
-    if data is None:
-        raise f.fail("", "payload file is empty")
-    f.mapping(data, "", "a mapping at the top level")
-    f.keys(data, _TOP, "", required=("format", "robot", "mass_kg", "com_m"))
-    if data["format"] != FORMAT:
-        raise f.fail("format", f"is {str(data['format'])[:40]!r}, expected {FORMAT!r}")
+    f.document(data, _TOP, ("format", "robot", "mass_kg", "com_m"), FORMAT, "payload file")
     if data.get("version", VERSION) != VERSION:
         raise f.fail("version", f"not supported (expected {VERSION})")
     robot = f.get(data, "robot", str)
