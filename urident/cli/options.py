@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import math
 import re
+import sys
 from pathlib import Path
 from typing import Any, Callable
 
@@ -371,7 +372,7 @@ def load_payload_arg(args: argparse.Namespace, spec):
     from urident.ident.payload_file import load_payload
 
     payload = load_payload(path, spec)
-    print(f"payload {path}: {payload.describe()}", file=__import__("sys").stderr)
+    print(f"payload {path}: {payload.describe()}", file=sys.stderr)
     return payload
 
 
