@@ -213,7 +213,7 @@ def test_lost_link_program_stays_stopped(files, attempt):
     assert r.returncode == 4, r.stdout + r.stderr
     line = the_error_line(r.stderr)
     assert line.startswith("urident: error: run aborted") and "samples kept in" in line, line
-    assert "robot stopped;" in line or "program stopped (checked on the controller)" in line, line
+    assert "robot stopped" in line or "program stopped (checked on the controller)" in line, line
     assert states == {"STOPPED"}
     log = load_log(out)
     assert log.status == "aborted" and f"{len(log.t)} samples kept" in line
