@@ -33,6 +33,7 @@ SESSION_STOP_WAIT_S = 15.0  # after a lost connection, wait this long for the se
 WATCH_PARENT_S = 10.0       # after the log is closed, wait this long for the session to exit …
 WATCH_SETTLE_S = 2.0        # … then the program must report STOPPED this long
 MAX_GAPS_LISTED = 1000      # the sidecar lists this many gaps; ``gap_count`` counts them all
+CONTROLLER_CLOSED = "the controller closed the recorder's RTDE connection"
 
 
 @dataclass(frozen=True)
@@ -199,6 +200,7 @@ def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, pare
     ready_sent = False
     orphaned = False
     session_reason = None  # the session's reason to stop, sent before it stops the robot
+    controller_closed = False
     try:
         while True:
             if conn.poll():
@@ -224,7 +226,8 @@ def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, pare
             except ConnectionError:
                 data = b""
             if data == b"":  # the controller closed the connection
-                reason = "the controller closed the recorder's RTDE connection"
+                controller_closed = True
+                reason = CONTROLLER_CLOSED
                 # The session's stop message carries the status and the real reason.
                 deadline = time.monotonic() + SESSION_STOP_WAIT_S
                 try:
@@ -269,8 +272,9 @@ def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, pare
             # Nobody else will stop the robot: the session process is gone.
             status = "aborted"
             reason = f"{session_death(parent_pid)}; {_stop_orphaned_program(host)}"
-            if session_reason:
-                reason = f"{session_reason}; {reason}"
+            before = session_reason or (CONTROLLER_CLOSED if controller_closed else None)
+            if before:
+                reason = f"{before}; {reason}"
             _drain(sock, reader, recipe, writer)  # what the controller sent until the stop
             if announce:  # the session cannot say it any more: the recorder shares its terminal
                 _say(f"urident: error: run aborted: {reason}; {writer.n_samples} samples kept in {out}")
@@ -284,7 +288,8 @@ def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, pare
         if late:
             writer.mark_late_cycle(late)
         extra["recorder"] = {"missed_samples": missed, "gap_count": gap_count, "gaps": gaps,
-                             "first_timestamp": first, "last_timestamp": last}
+                             "first_timestamp": first, "last_timestamp": last,
+                             "controller_closed_connection": controller_closed}
         writer.close(status=status if status else "aborted", abort_reason=reason, extra=extra)
         stats = RecorderStats(n, missed, tuple(gaps), first, last, tuple(f.name for f in fields),
                               status, reason)

@@ -326,13 +326,19 @@ class _Supervisor:
         unsure = [n for n in notes if "check the robot" in n]
         outcome = (f"robot NOT confirmed stopped: {unsure[-1]}" if unsure
                    else "program stopped (checked on the controller)")
-        head = f"run aborted {self.stop_reason}; " if self.stop_reason else "run aborted: "
-        return SessionAborted(f"{head}{death}; {outcome}; {self._log_kept()}")
+        kept, sidecar = self._log_kept()
+        reason = self.stop_reason
+        recorder = (sidecar.get("extra") or {}).get("recorder") or {}
+        if reason is None and recorder.get("controller_closed_connection"):
+            reason = "after the controller closed the RTDE connection (link lost)"
+        head = f"run aborted {reason}; " if reason else "run aborted: "
+        return SessionAborted(f"{head}{death}; {outcome}; {kept}")
 
-    def _log_kept(self) -> str:
-        """The recorder outlives the child and closes the log: wait for it, then say what it kept."""
+    def _log_kept(self) -> tuple[str, dict]:
+        """The recorder outlives the child and closes the log: wait for it, then say what it kept
+        (and return the log's sidecar)."""
         if self.log_path is None:
-            return "no log was started"
+            return "no log was started", {}
         from urident.logs import read_sidecar, sidecar_path
 
         deadline = time.monotonic() + LOG_CLOSE_WAIT_S
@@ -342,10 +348,10 @@ class _Supervisor:
             except UridentError:
                 data = {}
             if data.get("status") not in (None, "running"):
-                return f"{data.get('n_samples', 0)} samples kept in {self.log_path}"
+                return f"{data.get('n_samples', 0)} samples kept in {self.log_path}", data
             if time.monotonic() > deadline:
-                return f"the recorder did not close the log {self.log_path} within " \
-                       f"{LOG_CLOSE_WAIT_S:g} s: check it"
+                return (f"the recorder did not close the log {self.log_path} within "
+                        f"{LOG_CLOSE_WAIT_S:g} s: check it"), {}
             time.sleep(0.1)
 
     def _close_live(self, reason: str | None) -> None:
@@ -433,26 +439,25 @@ def _pickled(exc: BaseException) -> bytes | None:
 
 
 class _Channel:
-    """The child's side of the pipes. Stage messages are sent at once from the main thread (small
-    writes to a pipe the caller keeps draining); live samples go through a thread and a pipe of
-    their own (a caller behind on them never blocks the loop, nor delays the heartbeat, which a
-    second thread sends). With the caller gone, output lines and the final error go to this
-    process's own stdout and stderr instead."""
+    """The child's side of the pipes. Stage messages and the heartbeat are sent at once from the
+    main thread (small writes to a pipe the caller keeps draining); live samples go through a
+    thread and a pipe of their own (a caller behind on them never blocks the loop). With the
+    caller gone, output lines and the final error go to this process's own stdout and stderr."""
 
     def __init__(self, events_conn, live_conn):
         self.conn = events_conn
         self.live_conn = live_conn
         self.lock = threading.Lock()
         self.broken = False
-        self.beat = 0
+        self.next_beat = 0.0
         self.queued = 0
         self.sent = 0
         self.dropped = 0
         self.samples: queue.SimpleQueue = queue.SimpleQueue()
         self.closing = threading.Event()
-        self.threads = [threading.Thread(target=self._pump, name="urident-session-live", daemon=True),
-                        threading.Thread(target=self._heartbeat, name="urident-session-beat",
-                                         daemon=True)]
+        # No thread beside ur_rtde's unless there is work for it (fewer threads, fewer races).
+        self.threads = [threading.Thread(target=self._pump, name="urident-session-live",
+                                         daemon=True)] if live_conn is not None else []
         for thread in self.threads:
             thread.start()
 
@@ -479,12 +484,12 @@ class _Channel:
         self.queued += 1
         self.samples.put(item)
 
-    def _heartbeat(self) -> None:
-        sent = 0
-        while not self.closing.wait(BEAT_INTERVAL_S):
-            if self.beat != sent:  # the main thread turned since the last beat
-                sent = self.beat
-                self.send(("beat", sent))
+    def beat(self) -> None:
+        """Called by the main thread every period: a heartbeat every BEAT_INTERVAL_S."""
+        now = time.monotonic()
+        if now >= self.next_beat:
+            self.next_beat = now + BEAT_INTERVAL_S
+            self.send(("beat",))
 
     def _pump(self) -> None:
         while not self.closing.is_set():
@@ -542,7 +547,7 @@ class _ChildEvents(SessionEvents):
         self.channel.send(("motion",))
 
     def alive(self) -> None:
-        self.channel.beat += 1
+        self.channel.beat()
 
     def stopping(self, reason: str | None) -> None:
         self.channel.send(("stopping", reason))
