@@ -12,8 +12,9 @@ one line, and raises :class:`SessionAborted` once a run had started.
 What crosses the process boundary: the request (pickled); from the child, its output lines, the
 confirmation question (the caller asks the operator on its own terminal and sends the answer
 back), stage messages (the control script may start, the log path, the stop reason), a
-heartbeat during motion, the live view's samples (on a pipe of their own, fed by a thread, so
-the control loop never waits for the caller) and finally the result or the error; to the child,
+heartbeat during motion, the live view's samples (fixed-size records written without blocking
+to a pipe of their own: the control loop never waits for the caller, and no thread of ours runs
+beside ur_rtde's, which made its crashes after a lost link more frequent) and finally the result or the error; to the child,
 the answer and a stop request when the caller's live view fails. The log's recorder is the
 child's own child and keeps its guarantees (:mod:`urident.session.recorder`).
 """
@@ -25,6 +26,7 @@ import os
 import pickle
 import queue
 import signal
+import struct
 import sys
 import threading
 import time
@@ -46,7 +48,7 @@ LOG_CLOSE_WAIT_S = 30.0  # after the child died, wait this long for the recorder
 SETTLE_S = 0.3           # the program must report STOPPED this long after a completed run …
 SETTLE_ABORTED_S = 1.0   # … and after any other end (ur_rtde may have re-uploaded its script)
 BEAT_INTERVAL_S = 0.2
-LIVE_BACKLOG = 1000      # live samples queued in the child at most (≈ 2 s at 500 Hz)
+LIVE_RECORD = struct.Struct("<25d")  # t, q, qd, current, q_cmd: one live sample (200 bytes)
 NATIVE_CRASH = (signal.SIGSEGV, signal.SIGABRT, signal.SIGBUS, signal.SIGILL, signal.SIGFPE)
 
 
@@ -114,6 +116,7 @@ class _Supervisor:
             if end is not None:
                 end.close()
         self.live_conn = live_r
+        self.live_buffer = b""
         # Signals are forwarded (or, once the child ended, only noted) until the end: a second
         # Ctrl-C must not cut the final check of the program state short.
         with _ParentSignals(self._on_signal):
@@ -137,6 +140,10 @@ class _Supervisor:
                     sources.remove(source)
                     ended_at = time.monotonic()
                     continue
+                if source is self.live_conn:
+                    if not self._read_live():
+                        sources.remove(source)
+                    continue
                 for _ in range(500):  # drain, but come back to the watchdog now and then
                     try:
                         message = source.recv()
@@ -153,9 +160,7 @@ class _Supervisor:
 
     def _handle(self, message: tuple) -> None:
         kind = message[0]
-        if kind == "live":
-            self._push_live(message)
-        elif kind == "beat":
+        if kind == "beat":
             self.last_beat = time.monotonic()
         elif kind == "say":
             self.say(message[1])
@@ -193,10 +198,26 @@ class _Supervisor:
         finally:
             self.prompting = False
 
-    def _push_live(self, message: tuple) -> None:
+    def _read_live(self) -> bool:
+        """Push the live samples that arrived; False once the child's end closed."""
+        try:
+            data = os.read(self.live_conn.fileno(), 65536)
+        except OSError:
+            return False
+        if not data:
+            return False
+        self.live_buffer += data
+        n = len(self.live_buffer) // LIVE_RECORD.size
+        for k in range(n):
+            self._push_live(LIVE_RECORD.unpack_from(self.live_buffer, k * LIVE_RECORD.size))
+        self.live_buffer = self.live_buffer[n * LIVE_RECORD.size:]
+        return True
+
+    def _push_live(self, record: tuple) -> None:
         if self.live_failed:
             return
-        _, t, q, qd, current, q_cmd = message
+        t, q, qd, current, q_cmd = (record[0], list(record[1:7]), list(record[7:13]),
+                                    list(record[13:19]), list(record[19:25]))
         try:
             self.live.push({"timestamp": t, "actual_q": q, "actual_qd": qd,
                             "actual_current": current}, q_cmd)
@@ -439,27 +460,23 @@ def _pickled(exc: BaseException) -> bytes | None:
 
 
 class _Channel:
-    """The child's side of the pipes. Stage messages and the heartbeat are sent at once from the
-    main thread (small writes to a pipe the caller keeps draining); live samples go through a
-    thread and a pipe of their own (a caller behind on them never blocks the loop). With the
-    caller gone, output lines and the final error go to this process's own stdout and stderr."""
+    """The child's side of the pipes, all written from the main thread. Stage messages and the
+    heartbeat are small writes to a pipe the caller keeps draining; live samples are fixed-size
+    records, each written whole or not at all to a non-blocking pipe (a caller behind on them
+    loses view samples, never a control period). With the caller gone, output lines and the final
+    error go to this process's own stdout and stderr."""
 
     def __init__(self, events_conn, live_conn):
         self.conn = events_conn
-        self.live_conn = live_conn
         self.lock = threading.Lock()
         self.broken = False
         self.next_beat = 0.0
-        self.queued = 0
-        self.sent = 0
         self.dropped = 0
-        self.samples: queue.SimpleQueue = queue.SimpleQueue()
-        self.closing = threading.Event()
-        # No thread beside ur_rtde's unless there is work for it (fewer threads, fewer races).
-        self.threads = [threading.Thread(target=self._pump, name="urident-session-live",
-                                         daemon=True)] if live_conn is not None else []
-        for thread in self.threads:
-            thread.start()
+        self.live_fd = None
+        if live_conn is not None:
+            self.live_conn = live_conn  # keeps the descriptor open
+            self.live_fd = live_conn.fileno()
+            os.set_blocking(self.live_fd, False)
 
     def send(self, message: tuple) -> None:
         if not self.broken:
@@ -477,13 +494,6 @@ class _Channel:
             _write(sys.stderr, "urident: interrupted" if isinstance(error, KeyboardInterrupt)
                    else f"urident: error: {error}")
 
-    def live(self, item: tuple) -> None:
-        if self.queued - self.sent >= LIVE_BACKLOG:
-            self.dropped += 1  # the caller is behind: the view loses samples, never the loop
-            return
-        self.queued += 1
-        self.samples.put(item)
-
     def beat(self) -> None:
         """Called by the main thread every period: a heartbeat every BEAT_INTERVAL_S."""
         now = time.monotonic()
@@ -491,23 +501,17 @@ class _Channel:
             self.next_beat = now + BEAT_INTERVAL_S
             self.send(("beat",))
 
-    def _pump(self) -> None:
-        while not self.closing.is_set():
-            try:
-                item = self.samples.get(timeout=0.1)
-            except queue.Empty:
-                continue
-            self.sent += 1
-            if self.live_conn is not None and not self.broken:
-                try:
-                    self.live_conn.send(("live", *item))
-                except (BrokenPipeError, OSError):
-                    self.live_conn = None
+    def live(self, values: list[float]) -> None:
+        if self.live_fd is None:
+            return
+        try:
+            os.write(self.live_fd, LIVE_RECORD.pack(*values))  # ≤ PIPE_BUF: whole or EAGAIN
+        except BlockingIOError:
+            self.dropped += 1
+        except OSError:
+            self.live_fd = None
 
     def finish(self, verdict: tuple) -> None:
-        self.closing.set()
-        for thread in self.threads:
-            thread.join(2.0)
         self.send(verdict)
         for stream in (sys.stdout, sys.stderr):
             try:
@@ -606,9 +610,8 @@ class _LiveRelay:
     def push(self, sample: dict, q_cmd) -> None:
         if self.inbox.abort_reason:
             raise SessionAborted(self.inbox.abort_reason)
-        self.channel.live((float(sample["timestamp"]), list(sample["actual_q"]),
-                           list(sample["actual_qd"]), list(sample["actual_current"]),
-                           [float(v) for v in q_cmd]))
+        self.channel.live([sample["timestamp"], *sample["actual_q"], *sample["actual_qd"],
+                           *sample["actual_current"], *q_cmd])
 
     def close(self, reason: str | None) -> None:
         """The caller closes the view, with the run's final reason."""
