@@ -4,10 +4,14 @@ Each test drives `urident run` (unmodified ur_rtde client) against urident's sim
 on its own loopback address, ends the session one way, then asks the controller itself — its
 dashboard over TCP, as an operator tool would — whether the program is stopped, and keeps asking
 for a while (ur_rtde's reconnect can re-upload its control script after a stop).
+
+`urident run` supervises a child process, the session, which holds ur_rtde's clients; the
+recorder is the session's child. Some tests end `urident run`, some the session process.
 """
 
 from __future__ import annotations
 
+import os
 import signal
 import subprocess
 import sys
@@ -17,7 +21,7 @@ import time
 import numpy as np
 import pytest
 
-from sim_helpers import dashboard, spawn_run
+from sim_helpers import dashboard, session_child, spawn_run
 from test_session_sim import RELAXED, NEAR_START, make_trajectory, one_line_error, run_cli
 from urident.logs import load_log, read_sidecar, sidecar_path
 from urident.simcontroller.process import SimControllerProcess
@@ -43,8 +47,8 @@ def program_states(host: str, watch_s: float = 2.0) -> set[str]:
         time.sleep(0.05)
 
 
-def start_run(host, files, out):
-    proc = spawn_run(host, files, out)
+def start_run(host, files, out, **popen):
+    proc = spawn_run(host, files, out, **popen)
     deadline = time.monotonic() + 60
     line = ""
     while "running" not in line and time.monotonic() < deadline:
@@ -55,6 +59,19 @@ def start_run(host, files, out):
 
 def playing(host: str) -> bool:
     return dashboard(host, "programState")[1].startswith("PLAYING")
+
+
+def the_error_line(stderr: str) -> str:
+    """`urident run`'s one error line: nothing else (the recorder, the session) adds another."""
+    lines = [l for l in stderr.splitlines() if l.startswith("urident: error:")]
+    assert len(lines) == 1, stderr
+    return one_line_error(stderr)
+
+
+def every_sample_kept(log) -> bool:
+    recorder = log.metadata["extra"]["recorder"]
+    return (len(log.t) > 400 and recorder["missed_samples"] == 0
+            and bool(np.allclose(np.diff(log.t), 0.002, atol=1e-6)))
 
 
 @pytest.mark.parametrize("signum, words, host", [
@@ -80,9 +97,10 @@ def test_signal_during_servo_stops_the_program(files, signum, words, host):
     assert len(log.t) > 400 and np.allclose(np.diff(log.t), 0.002, atol=1e-6)
 
 
-def test_killed_session_recorder_stops_the_program_and_names_the_death(files):
-    """SIGKILL (as the OOM killer does): no handler runs in the session. The recorder process,
-    which outlives it, stops the program through the dashboard and closes the log."""
+def test_killed_urident_run_lets_the_session_stop_the_robot(files):
+    """SIGKILL of `urident run` (as the OOM killer does): no handler runs there. Its child, the
+    session process, sees its supervisor gone and stops the robot as SIGTERM would (servoStop,
+    stopScript, the program checked on the controller); the log names the death."""
     host = "127.0.0.64"
     out = files["dir"] / "killed.csv"
     with SimControllerProcess(host=host, robot="ur5e", initial_q=NEAR_START):
@@ -90,7 +108,7 @@ def test_killed_session_recorder_stops_the_program_and_names_the_death(files):
         time.sleep(1.0)
         assert playing(host)
         proc.send_signal(signal.SIGKILL)
-        _, stderr = proc.communicate(timeout=60)  # once the recorder closed the inherited pipes too
+        _, stderr = proc.communicate(timeout=60)  # once the session closed the inherited pipes too
         deadline = time.monotonic() + 30
         while read_sidecar(sidecar_path(out))["status"] == "running" and time.monotonic() < deadline:
             time.sleep(0.1)
@@ -99,11 +117,85 @@ def test_killed_session_recorder_stops_the_program_and_names_the_death(files):
     log = load_log(out)
     reason = log.metadata["abort_reason"]
     assert log.status == "aborted"
-    assert reason.startswith("session process died (killed by signal 9"), reason
-    assert "program stopped through the dashboard" in reason
-    assert one_line_error(stderr).startswith(f"urident: error: run aborted: {reason};")  # the recorder's
+    assert reason == "because the urident run process died (killed by signal 9, SIGKILL)", reason
+    line = the_error_line(stderr)  # the session's, on the terminal it shares
+    assert line.startswith(f"urident: error: run aborted {reason}; robot stopped; "), line
     assert states == {"STOPPED"}
-    assert len(log.t) > 400 and np.allclose(np.diff(log.t), 0.002, atol=1e-6)
+    assert every_sample_kept(log)
+
+
+@pytest.mark.parametrize("signum, words, host", [
+    (signal.SIGSEGV, "ur_rtde crashed (signal 11, SIGSEGV)", "127.0.0.73"),
+    (signal.SIGKILL, "the session process was killed (signal 9, SIGKILL)", "127.0.0.74"),
+    (signal.SIGSTOP, "the session process stopped responding for 5 s during the motion", "127.0.0.75"),
+])
+def test_session_process_crash_or_hang_is_reported_by_urident_run(files, signum, words, host):
+    """The session process (ur_rtde's clients) dies mid-servo (a crash, a kill) or hangs:
+    `urident run` stops the program through the dashboard, checks it stayed stopped, says so in
+    one line and exits 4; the recorder keeps every sample up to its own stop."""
+    out = files["dir"] / f"child_{signum}.csv"
+    with SimControllerProcess(host=host, robot="ur5e", initial_q=NEAR_START):
+        proc = start_run(host, files, out)
+        child = session_child(proc.pid)
+        time.sleep(1.0)
+        assert playing(host)
+        os.kill(child, signum)
+        _, stderr = proc.communicate(timeout=120)
+        states = program_states(host)
+    assert proc.returncode == 4, stderr
+    line = the_error_line(stderr)
+    assert line.startswith(f"urident: error: run aborted: {words}"), line
+    assert "program stopped (checked on the controller)" in line, line
+    assert states == {"STOPPED"}
+    log = load_log(out)
+    reason = log.metadata["abort_reason"]
+    assert log.status == "aborted"
+    assert reason.startswith("session process died") and "program stopped through the dashboard" in reason
+    assert line.endswith(f"; {len(log.t)} samples kept in {out}"), line
+    assert every_sample_kept(log)
+
+
+def test_ctrl_c_on_a_terminal_reaches_the_whole_process_group(files):
+    """A terminal's Ctrl-C hits every process of its foreground group: the session still stops
+    once, cleanly (servoStop, stopScript), and says so."""
+    host = "127.0.0.76"
+    out = files["dir"] / "group_sigint.csv"
+    with SimControllerProcess(host=host, robot="ur5e", initial_q=NEAR_START):
+        proc = start_run(host, files, out, start_new_session=True)
+        time.sleep(1.0)
+        assert playing(host)
+        os.killpg(proc.pid, signal.SIGINT)
+        _, stderr = proc.communicate(timeout=60)
+        states = program_states(host)
+    assert proc.returncode == 4, stderr
+    line = the_error_line(stderr)
+    assert "interrupted by the operator (Ctrl-C); robot stopped;" in line, line
+    assert states == {"STOPPED"}
+    log = load_log(out)
+    assert log.status == "aborted" and log.metadata["abort_reason"] == "interrupted by the operator (Ctrl-C)"
+    assert every_sample_kept(log)
+
+
+def test_the_question_is_asked_on_the_terminal(files):
+    """Without --yes, `urident run` asks on its terminal before any motion; "y" runs."""
+    host = "127.0.0.78"
+    out = files["dir"] / "asked.csv"
+    master, slave = os.openpty()
+    cmd = [sys.executable, "-m", "urident.cli.main", "run", "--robot", "ur5e", "--host", host,
+           "--trajectory", str(files["ur5e"]), "--out", str(out), "--config", str(files["config"])]
+    try:
+        with SimControllerProcess(host=host, robot="ur5e", initial_q=NEAR_START):
+            proc = subprocess.Popen(cmd, stdin=slave, stdout=subprocess.PIPE,
+                                    stderr=subprocess.PIPE, text=True)
+            os.close(slave)
+            os.write(master, b"y\n")  # typed ahead: the terminal keeps it until it is read
+            stdout, stderr = proc.communicate(timeout=120)
+    finally:
+        os.close(master)
+    assert proc.returncode == 0, stderr
+    question = stdout.index("to the trajectory start and run")
+    assert "[y/N]" in stdout and stdout.index("moving to the start") > question
+    assert "completed:" in stdout and load_log(out).status == "completed"
 
 
 @pytest.mark.parametrize("attempt", [1, 2])
@@ -116,21 +208,19 @@ def test_lost_link_program_stays_stopped(files, attempt):
                               faults=[f"drop@{1.5 + attempt}"]):
         r = run_cli(host, "ur5e", files["ur5e"], out, files["config"], "--yes")
         states = program_states(host, watch_s=3.0)
-    line = one_line_error(r.stderr)
-    if r.returncode == -signal.SIGSEGV:
-        # ur_rtde's reconnect thread can crash the process after a lost link (its known race):
-        # then the recorder, which outlives it, says so in one line and the program is stopped.
-        assert "session process died (killed by signal 11, SIGSEGV)" in line, line
-    else:
-        assert r.returncode == 4, r.stdout + r.stderr
-        assert "run aborted" in line and "robot stopped" in line, line
+    # ur_rtde's reconnect thread may crash the session process after a lost link (its known
+    # race): `urident run`, which supervises it, still stops the run with its own line
+    assert r.returncode == 4, r.stdout + r.stderr
+    line = the_error_line(r.stderr)
+    assert line.startswith("urident: error: run aborted") and "samples kept in" in line, line
+    assert "robot stopped" in line or "program stopped (checked on the controller)" in line, line
     assert states == {"STOPPED"}
     log = load_log(out)
-    assert log.status == "aborted"
-    if r.returncode == -signal.SIGSEGV:  # the session died before writing its run details
-        assert len(log) > 0 and "session process died" in (log.metadata.get("abort_reason") or "")
-    else:
+    assert log.status == "aborted" and f"{len(log.t)} samples kept" in line
+    if "servo_timestamps_s" in log.metadata["extra"]:
         assert log.t[-1] >= log.metadata["extra"]["servo_timestamps_s"][0]
+    else:  # the session process died before closing the log: the recorder closed it
+        assert "session process died" in log.metadata["abort_reason"]
 
 
 class _FailingView:

@@ -33,6 +33,7 @@ SESSION_STOP_WAIT_S = 15.0  # after a lost connection, wait this long for the se
 WATCH_PARENT_S = 10.0       # after the log is closed, wait this long for the session to exit …
 WATCH_SETTLE_S = 2.0        # … then the program must report STOPPED this long
 MAX_GAPS_LISTED = 1000      # the sidecar lists this many gaps; ``gap_count`` counts them all
+CONTROLLER_CLOSED = "the controller closed the recorder's RTDE connection"
 
 
 @dataclass(frozen=True)
@@ -52,8 +53,10 @@ class RtdeRecorder:
     :meth:`stop`, which finalises the log's sidecar with the session's status."""
 
     def __init__(self, host: str, rate_hz: float, out: Path, metadata: dict[str, Any],
-                 fields: list[str] | None = None):
+                 fields: list[str] | None = None, announce: bool = True):
         self.fields = fields  # log field names to ask for (default: urident.logs.LOG_FIELDS)
+        # Say on stderr when the session process died; a supervisor of the session says it instead.
+        self.announce = announce
         self.host = host
         self.rate_hz = rate_hz
         self.out = Path(out)
@@ -66,7 +69,7 @@ class RtdeRecorder:
         parent, child = ctx.Pipe()
         self._process = ctx.Process(target=_record_main, name="urident-recorder", daemon=False,
                                     args=(self.host, self.rate_hz, str(self.out), self.metadata,
-                                          child, os.getpid(), self.fields))
+                                          child, os.getpid(), self.fields, self.announce))
         self._process.start()
         child.close()
         self._conn = parent
@@ -78,6 +81,16 @@ class RtdeRecorder:
             self._process.join(5)
             raise ConnectionLost(f"the log recorder could not start: {payload}")
         return tuple(payload)
+
+    def note(self, abort_reason: str | None) -> None:
+        """The session's reason to stop, before it stops the robot: the log keeps it even if the
+        session process dies while stopping."""
+        if self._process is None or not abort_reason:
+            return
+        try:
+            self._conn.send(("note", abort_reason))
+        except (BrokenPipeError, OSError):
+            pass
 
     def stop(self, status: str, abort_reason: str | None, extra: dict[str, Any],
              timeout_s: float = 10.0) -> RecorderStats | None:
@@ -124,23 +137,32 @@ def _alive(pid: int) -> bool:
     return fields is not None and fields[0] != "Z"
 
 
-def session_death(pid: int) -> str:
-    """Why the session process ``pid`` (our parent) is gone, as far as can be told: a dead
-    process stays a zombie until its own parent reaps it, and ``/proc/PID/stat`` then holds its
-    wait status (field 52, Linux ≥ 3.5)."""
+def signal_name(signum: int) -> str:
+    try:
+        return signal.Signals(signum).name
+    except ValueError:
+        return "unknown signal"
+
+
+def process_death(pid: int) -> str | None:
+    """How the ended process ``pid`` died ("killed by signal 9, SIGKILL", "exit code 1"), as far
+    as can be told: a dead process stays a zombie until its own parent reaps it, and
+    ``/proc/PID/stat`` then holds its wait status (field 52, Linux ≥ 3.5)."""
     fields = _proc_stat(pid)
     if fields and fields[0] == "Z" and len(fields) >= 50 and fields[49].lstrip("-").isdigit():
         status = int(fields[49])
         if os.WIFSIGNALED(status):
             signum = os.WTERMSIG(status)
-            try:
-                name = signal.Signals(signum).name
-            except ValueError:
-                name = "unknown signal"
-            return f"session process died (killed by signal {signum}, {name})"
+            return f"killed by signal {signum}, {signal_name(signum)}"
         if os.WIFEXITED(status):
-            return f"session process died (exit code {os.WEXITSTATUS(status)})"
-    return "session process died"
+            return f"exit code {os.WEXITSTATUS(status)}"
+    return None
+
+
+def session_death(pid: int) -> str:
+    """Why the session process ``pid`` (our parent) is gone, as far as can be told."""
+    how = process_death(pid)
+    return f"session process died ({how})" if how else "session process died"
 
 
 def _stop_orphaned_program(host: str) -> str:
@@ -153,7 +175,7 @@ def _stop_orphaned_program(host: str) -> str:
 
 
 def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, parent_pid: int,
-                 names: list[str] | None = None) -> None:
+                 names: list[str] | None = None, announce: bool = True) -> None:
     # Ctrl-C, SIGTERM and SIGHUP reach the whole process group (or a terminal's): the session
     # decides when the recording ends, and if the session itself dies the recorder notices.
     for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
@@ -177,6 +199,8 @@ def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, pare
     status, reason, extra = "aborted", None, {}
     ready_sent = False
     orphaned = False
+    session_reason = None  # the session's reason to stop, sent before it stops the robot
+    controller_closed = False
     try:
         while True:
             if conn.poll():
@@ -185,6 +209,9 @@ def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, pare
                 except (EOFError, OSError):  # the session's end of the pipe closed: it died
                     orphaned = True
                     break
+                if message[0] == "note":
+                    session_reason = message[1]
+                    continue
                 if message[0] == "stop":
                     _, status, reason, extra = message
                     _drain(sock, reader, recipe, writer)  # what arrived before the stop
@@ -199,14 +226,20 @@ def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, pare
             except ConnectionError:
                 data = b""
             if data == b"":  # the controller closed the connection
-                reason = "the controller closed the recorder's RTDE connection"
+                controller_closed = True
+                reason = CONTROLLER_CLOSED
                 # The session's stop message carries the status and the real reason.
+                deadline = time.monotonic() + SESSION_STOP_WAIT_S
                 try:
-                    if conn.poll(SESSION_STOP_WAIT_S):
+                    while conn.poll(max(deadline - time.monotonic(), 0.0)):
                         message = conn.recv()
+                        if message[0] == "note":
+                            session_reason = message[1]
+                            continue
                         if message[0] == "stop":
-                            _, status, session_reason, extra = message
-                            reason = session_reason or reason
+                            _, status, stop_reason, extra = message
+                            reason = stop_reason or reason
+                        break
                 except (EOFError, OSError):
                     orphaned = True
                 break
@@ -239,9 +272,12 @@ def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, pare
             # Nobody else will stop the robot: the session process is gone.
             status = "aborted"
             reason = f"{session_death(parent_pid)}; {_stop_orphaned_program(host)}"
+            before = session_reason or (CONTROLLER_CLOSED if controller_closed else None)
+            if before:
+                reason = f"{before}; {reason}"
             _drain(sock, reader, recipe, writer)  # what the controller sent until the stop
-            # The session cannot say it any more: the recorder shares its terminal.
-            _say(f"urident: error: run aborted: {reason}; {writer.n_samples} samples kept in {out}")
+            if announce:  # the session cannot say it any more: the recorder shares its terminal
+                _say(f"urident: error: run aborted: {reason}; {writer.n_samples} samples kept in {out}")
         try:
             sock.sendall(rp.frame(rp.CONTROL_PACKAGE_PAUSE))
         except OSError:
@@ -252,7 +288,8 @@ def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, pare
         if late:
             writer.mark_late_cycle(late)
         extra["recorder"] = {"missed_samples": missed, "gap_count": gap_count, "gaps": gaps,
-                             "first_timestamp": first, "last_timestamp": last}
+                             "first_timestamp": first, "last_timestamp": last,
+                             "controller_closed_connection": controller_closed}
         writer.close(status=status if status else "aborted", abort_reason=reason, extra=extra)
         stats = RecorderStats(n, missed, tuple(gaps), first, last, tuple(f.name for f in fields),
                               status, reason)
@@ -267,7 +304,7 @@ def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, pare
             # Keep only the terminal: an inherited copy of multiprocessing's sentinel pipe would
             # make the session's join() wait for this watcher instead of the recorder.
             os.closerange(3, os.sysconf("SC_OPEN_MAX"))
-            _watch_program(host, parent_pid, out)
+            _watch_program(host, parent_pid, out, announce)
         finally:
             os._exit(0)
 
@@ -279,7 +316,7 @@ def _say(line: str) -> None:
         pass
 
 
-def _watch_program(host: str, parent_pid: int, out: str) -> None:
+def _watch_program(host: str, parent_pid: int, out: str, announce: bool = True) -> None:
     """After the session process exited (its ur_rtde clients with it), the controller's program
     must be stopped and stay so; what had to be done is added to the sidecar. A session process
     that lives on (the Python API, ``urident demo``) may start its next run: nothing is done then."""
@@ -294,7 +331,7 @@ def _watch_program(host: str, parent_pid: int, out: str) -> None:
         time.sleep(0.02)
     death = session_death(parent_pid)
     notes = ensure_stopped(host, WATCH_SETTLE_S)
-    if "signal" in death:  # it crashed after closing the log (ur_rtde can, after a lost link)
+    if announce and "signal" in death:  # it crashed after closing the log (ur_rtde can, after a lost link)
         stopped = [n for n in notes if "check the robot" in n] or ["program stopped"]
         _say(f"urident: error: {death} after the log was closed; {stopped[-1]}; the log "
              f"{out} is complete up to the stop")

@@ -5,6 +5,10 @@ controller (version → rate, model, modes, pose); check the trajectory densely 
 approach to its start; ask the operator (unless ``--yes``); start the control script; moveJ to the
 start; servoStop; the servoJ loop paced by ``initPeriod``/``waitPeriod`` with the monitors and the
 log; rest at the final point; then — always, in a ``finally`` — servoStop and stopScript.
+
+:func:`run_local` runs all of it in the calling process; ``urident run`` runs it in a child
+process supervised by :mod:`urident.session.supervisor`, told what happens through
+:class:`SessionEvents`.
 """
 
 from __future__ import annotations
@@ -97,11 +101,42 @@ def plan_motion(spec: RobotSpec, trajectory_path: Path, rate_hz: float, repeat: 
 
 class Terminated(BaseException):
     """SIGTERM or SIGHUP reached the session; raised in the main thread like KeyboardInterrupt
-    (a BaseException, so no ``except Exception`` on the way swallows it)."""
+    (a BaseException, so no ``except Exception`` on the way swallows it). ``what`` is the reason
+    as the session reports it."""
 
-    def __init__(self, signum: int):
+    def __init__(self, signum: int, cause: str | None = None):
         super().__init__(signum)
         self.name = signal.Signals(signum).name
+        self.what = cause or f"terminated by {self.name}"
+
+
+class SessionEvents:
+    """What a session tells a supervising process (:mod:`urident.session.supervisor`) as it
+    goes; these defaults do nothing, for a session run in the calling process."""
+
+    announce = True  # the recorder says it itself when the session process dies
+
+    def ready(self) -> None:
+        """The session's signal handlers are in place; no robot connection exists yet."""
+
+    def control_starting(self) -> None:
+        """Sent before the control script is started: from here on the program may run."""
+
+    def log_started(self, path: Path) -> None:
+        """The recorder writes the log at ``path``."""
+
+    def motion(self) -> None:
+        """The approach starts; :meth:`alive` is called every poll or control period from now."""
+
+    def alive(self) -> None:
+        """The session's main thread is still turning (once per period: keep it cheap)."""
+
+    def stopping(self, reason: str | None) -> None:
+        """The run ends (``reason`` None: completed); the robot is stopped next."""
+
+    def signal_cause(self, signum: int) -> str | None:
+        """The reason to report for ``signum`` instead of "terminated by SIG…", if any."""
+        return None
 
 
 class _SessionSignals:
@@ -111,16 +146,21 @@ class _SessionSignals:
 
     SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
-    def __init__(self):
+    def __init__(self, cause: Callable[[int], str | None] = lambda _signum: None):
         self.stopping = False
+        self.raised = False
+        self.cause = cause
         self.previous: dict[int, object] = {}
 
     def _handle(self, signum, _frame) -> None:
-        if self.stopping:
+        # One exception ends the session; a second signal (a terminal's Ctrl-C reaches the whole
+        # process group, a supervisor forwards it too) must not cut its stop short.
+        if self.stopping or self.raised:
             return
+        self.raised = True
         if signum == signal.SIGINT:
             raise KeyboardInterrupt
-        raise Terminated(signum)
+        raise Terminated(signum, self.cause(signum))
 
     def __enter__(self) -> "_SessionSignals":
         if threading.current_thread() is threading.main_thread():
@@ -141,20 +181,24 @@ class _SessionSignals:
             self.stopping = stopping
 
 
-def run_session(request: RunRequest, say: Callable[[str], None] = print,
-                confirm: Callable[[str], bool] | None = None,
-                live=None, link: RobotLink | None = None) -> RunResult:
-    """Run one session; raise :class:`SafetyError` before any motion when a check fails and
-    :class:`SessionAborted` (after the robot was stopped and the log closed) when a run stops early."""
-    spec = load_robot(request.robot)
+def run_local(request: RunRequest, say: Callable[[str], None] = print,
+              confirm: Callable[[str], bool] | None = None, live=None,
+              link: RobotLink | None = None, events: SessionEvents | None = None) -> RunResult:
+    """Run one session in this process; raise :class:`SafetyError` before any motion when a check
+    fails and :class:`SessionAborted` (after the robot was stopped and the log closed) when a run
+    stops early."""
+    events = events or SessionEvents()
     config = request.config
     link = link or RobotLink(request.host)
     result = RunResult(status="checked")
-    with _SessionSignals() as signals:
+    with _SessionSignals(events.signal_cause) as signals:
+        events.ready()
         try:
-            return _check_and_run(request, spec, config, link, result, say, confirm, live, signals)
+            spec = load_robot(request.robot)
+            return _check_and_run(request, spec, config, link, result, say, confirm, live, signals,
+                                  events)
         except Terminated as exc:  # before the run started (a run turns it into SessionAborted)
-            raise Interrupted(f"terminated by {exc.name} before any motion: nothing was moved") from None
+            raise Interrupted(f"{exc.what} before any motion: nothing was moved") from None
         except ConnectionLost as exc:  # before any motion: no run started
             raise ControllerUnreachable(f"{exc}; nothing moved") from None
         finally:
@@ -166,7 +210,7 @@ def run_session(request: RunRequest, say: Callable[[str], None] = print,
 
 def _check_and_run(request: RunRequest, spec: RobotSpec, config: ExperimentConfig,
                    link: RobotLink, result: RunResult, say, confirm, live,
-                   signals: _SessionSignals) -> RunResult:
+                   signals: _SessionSignals, events: SessionEvents) -> RunResult:
     link.connect_receive()
     info = link.info()
     result.info = info
@@ -194,8 +238,9 @@ def _check_and_run(request: RunRequest, spec: RobotSpec, config: ExperimentConfi
                     f"{motion.t[-1]:.1f} s of servoJ?")
         if confirm is None or not confirm(question):
             raise SafetyError("not confirmed: nothing was moved (pass --yes to skip the question)")
+    events.control_starting()
     link.connect_control(info.rate_hz)
-    return _execute(request, spec, info, motion, link, result, say, live, signals)
+    return _execute(request, spec, info, motion, link, result, say, live, signals, events)
 
 
 def _clearance_function(spec: RobotSpec, limits):
@@ -211,7 +256,7 @@ APPROACH_POLL_S = 0.01
 
 
 def _approach(link: RobotLink, q_start: np.ndarray, config: ExperimentConfig,
-              plan: ApproachPlan | None) -> None:
+              plan: ApproachPlan | None, alive: Callable[[], None] = lambda: None) -> None:
     """moveJ to the start, asynchronously, so that Ctrl-C and the safety bits are seen at once:
     poll every 10 ms until the robot stands at the start; stop the move on any problem."""
     speed, acceleration = config.approach.speed_rad_s, config.approach.acceleration_rad_s2
@@ -224,6 +269,7 @@ def _approach(link: RobotLink, q_start: np.ndarray, config: ExperimentConfig,
     try:
         while True:
             time.sleep(APPROACH_POLL_S)
+            alive()
             _, q, safety_bits, runtime_state = link.monitor_state()
             problem = safety_problem(int(safety_bits))
             if problem:
@@ -292,7 +338,7 @@ def stop_outcome(problems: list[str]) -> str:
 
 def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion: PlannedMotion,
              link: RobotLink, result: RunResult, say: Callable[[str], None], live,
-             signals: _SessionSignals) -> RunResult:
+             signals: _SessionSignals, events: SessionEvents) -> RunResult:
     from urident.session.recorder import RtdeRecorder
 
     config = request.config
@@ -313,13 +359,14 @@ def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion:
     }
     request.out.parent.mkdir(parents=True, exist_ok=True)
     recorder = RtdeRecorder(request.host, info.rate_hz, request.out, metadata,
-                            fields=log_field_names(info.version))
+                            fields=log_field_names(info.version), announce=events.announce)
     try:
         recorder.start()  # every controller sample from here on is in the log
     except BaseException as exc:
         with signals.shielded():
             recorder.stop("aborted", f"before any motion: {type(exc).__name__}: {exc}", {})
         raise
+    events.log_started(request.out)
     monitor = RunMonitor(config.monitors, period)
     periods = np.full(len(motion.q_cmd), np.nan)
     abort_reason: str | None = None
@@ -328,15 +375,18 @@ def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion:
     scheduling_note = scheduling.__enter__()
     try:
         say(f"moving to the start at {config.approach.speed_rad_s} rad/s …")
-        _approach(link, motion.q_cmd[0], config, result.approach)
+        events.motion()
+        _approach(link, motion.q_cmd[0], config, result.approach, events.alive)
         link.control.servoStop()
         say(f"running {len(motion.q_cmd)} servo periods at {info.rate_hz:g} Hz …")
         lookahead, gain = config.servo.lookahead_time_s, config.servo.gain
         work_s = None
         last_start = None
+        alive = events.alive
         for k, q_cmd in enumerate(motion.q_cmd):
             t_start = link.init_period()
             now = time.perf_counter()
+            alive()
             if last_start is not None:
                 periods[k] = now - last_start
             last_start = now
@@ -361,7 +411,7 @@ def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion:
     except KeyboardInterrupt:
         abort_reason = "interrupted by the operator (Ctrl-C)"
     except Terminated as exc:
-        abort_reason = f"terminated by {exc.name}"
+        abort_reason = exc.what
     except ConnectionLost as exc:
         abort_reason = str(exc)
     except RuntimeError as exc:  # ur_rtde raises RuntimeError when the link breaks
@@ -373,6 +423,8 @@ def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion:
     finally:
         # Stop the robot first; the recorder then writes what the controller sent until the stop.
         signals.stopping = True
+        events.stopping(abort_reason)
+        recorder.note(abort_reason)  # in the log even if this process dies while stopping
         problems = link.stop()
         scheduling.__exit__(None, None, None)
         valid = periods[np.isfinite(periods)]
