@@ -122,6 +122,44 @@ def flange_map(spec) -> np.ndarray:
     return np.column_stack([_to_body(spec, e) for e in np.eye(10)])
 
 
+def payload_regressor(spec, blocks: np.ndarray) -> np.ndarray:
+    """(N, 6, 10) columns of φ_F from the (N, 6, 78) regressor: a payload's joint torque is
+    ``payload_regressor(spec, blocks) @ payload.flange_vector`` (module doc: Y_6 L)."""
+    from urident.ident.features import tool_body_regressor
+
+    return tool_body_regressor(blocks) @ flange_map(spec)
+
+
+_SCALE_CACHE: dict[tuple, np.ndarray] = {}
+REFERENCE_SAMPLES = 2000
+
+
+def payload_reference_scales(spec) -> np.ndarray:
+    """(10,) RMS (per sample, summed over joints) of each payload column over random states, the
+    reference that makes the columns' units (kg, kg·m, kg·m²) comparable in a condition number
+    (as :func:`urident.excitation.criteria.reference_scales` for the arm)."""
+    from urident.model import regressor_blocks
+    from urident.model.base import random_states
+
+    key = (spec.name, str(spec.source), spec.tool_xyz.tobytes(), spec.tool_rotation.tobytes())
+    if key not in _SCALE_CACHE:
+        states = random_states(spec, REFERENCE_SAMPLES, np.random.default_rng(0))
+        a = payload_regressor(spec, regressor_blocks(spec, *states))
+        _SCALE_CACHE[key] = np.sqrt(np.sum(a ** 2, axis=(0, 1)) / REFERENCE_SAMPLES)
+    return _SCALE_CACHE[key].copy()
+
+
+def payload_condition(spec, q, qd, qdd) -> float:
+    """cond of the payload columns (reference-scaled, :func:`payload_reference_scales`) stacked
+    over the samples (N, 6): how well the motion determines all ten payload parameters with the
+    arm fixed (``excite --for-payload`` minimises it)."""
+    from urident.model import regressor_blocks
+
+    a = payload_regressor(spec, regressor_blocks(spec, q, qd, qdd)).reshape(-1, 10)
+    sv = np.linalg.svd(a / payload_reference_scales(spec), compute_uv=False)
+    return float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
+
+
 def from_flange_vector(robot: str, phi: np.ndarray, **kw) -> Payload:
     phi = np.asarray(phi, dtype=float)
     m = float(phi[0])
@@ -284,7 +322,6 @@ def estimate_payload(params, spec, data, mass_range=None, regularisation: float 
     drive gains chosen) with the arm's ``params`` (:class:`IdentifiedModel`) fixed (module doc)."""
     from urident.ident.estimate import joint_weights, row_weights
     from urident.ident.estimate_consistent import DEFAULT_REGULARISATION
-    from urident.ident.features import tool_body_regressor
     from urident.ident.identify import predict_prepared
     from urident.ident.metrics import error_metrics
     from urident.model import regressor_blocks
@@ -295,8 +332,7 @@ def estimate_payload(params, spec, data, mass_range=None, regularisation: float 
             raise PayloadError(f"mass range must be 0 < low < high, not {low:g}..{high:g} kg")
     check_wrist_motion(data.q)
     residual = data.tau - predict_prepared(params, spec, data)
-    y6 = tool_body_regressor(regressor_blocks(spec, data.q, data.qd, data.qdd))
-    a = (y6 @ flange_map(spec)).reshape(-1, 10)
+    a = payload_regressor(spec, regressor_blocks(spec, data.q, data.qd, data.qdd)).reshape(-1, 10)
     y = residual.reshape(-1)
     n = len(data)
     if 6 * n <= 20:
