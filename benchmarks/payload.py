@@ -3,8 +3,9 @@ with the realistic preset of unmodelled effects on.
 
 Per seed: the arm is identified (``urident identify``, paper model plus offset, load-friction and
 Stribeck columns) on the robot's identification trajectory without a load; then each payload
-(0.3 to 10 kg, off-axis centre of mass, a full inertia) rides the validation trajectory and
-``urident payload`` estimates it with that arm. Drive gains: ``torque_constant_error`` on, the
+(0.3 to 10 kg, off-axis centre of mass, a full inertia) rides the payload excitation trajectory
+(``experiments/ROBOT_payload.yaml``, from ``urident excite --for-payload``) and ``urident payload``
+estimates it with that arm. Drive gains: ``torque_constant_error`` on, the
 identification trajectory without and with a known 5 kg load, ``urident drive-gains``; scored on
 the joints it reports as calibrated. Prints one line per case; the last line is one JSON object.
 
@@ -55,33 +56,48 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--robot", default="ur10e")
     ap.add_argument("--seeds", default="1,2,3")
-    ap.add_argument("--trajectory", default=None, help="loaded runs' trajectory (default: the robot's validation one)")
+    ap.add_argument("--trajectory", default=None,
+                    help="loaded runs' trajectory (default: experiments/ROBOT_payload.yaml)")
+    ap.add_argument("--payloads", default=None, help="indices into PAYLOADS to run (default: all)")
+    ap.add_argument("--no-gains", action="store_true", help="skip the drive-gain runs")
+    ap.add_argument("--no-tare", dest="tare", action="store_false",
+                    help="no unloaded run of the payload trajectory (urident payload without --unloaded)")
+    ap.add_argument("--workdir", default=None, help="keep the runs in this directory (default: a temporary one)")
     args = ap.parse_args()
     from urident.ident.payload import Payload
     from urident.model import load_robot
 
     spec = load_robot(args.robot)
     ident_traj = ROOT / "experiments" / f"{args.robot}_ident.yaml"
-    load_traj = Path(args.trajectory) if args.trajectory else ROOT / "experiments" / f"{args.robot}_valid.yaml"
+    load_traj = Path(args.trajectory) if args.trajectory else ROOT / "experiments" / f"{args.robot}_payload.yaml"
+    chosen = [int(k) for k in args.payloads.split(",")] if args.payloads else range(len(PAYLOADS))
     seeds = [int(s) for s in args.seeds.split(",")]
     cases, gains_cases = [], []
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
-        d = Path(tmp)
+        d = Path(args.workdir or tmp)
+        d.mkdir(parents=True, exist_ok=True)
         for seed in seeds:
             arm_log, arm = d / f"arm{seed}.csv", d / f"arm{seed}_params.yaml"
             _quiet(["simulate", "--trajectory", str(ident_traj), "--out", str(arm_log), "--seed", str(seed),
                     "--effects", str(_effects(d / f"e_arm{seed}.txt", []))])
             _quiet(["identify", str(arm_log), "--robot", args.robot, "--out", str(arm),
                     "--friction-extra", "offset,load,stribeck"])
-            for k, (mass, com, diag, prod) in enumerate(PAYLOADS):
+            tare = []
+            if args.tare:  # the payload trajectory without the tool (its own noise seed)
+                tare_log = d / f"unloaded{seed}.csv"
+                _quiet(["simulate", "--trajectory", str(load_traj), "--out", str(tare_log), "--seed",
+                        str(300 + seed), "--effects", str(_effects(d / f"e_tare{seed}.txt", []))])
+                tare = ["--unloaded", str(tare_log)]
+            for k in chosen:
+                mass, com, diag, prod = PAYLOADS[k]
                 eff = _effects(d / f"e_{seed}_{k}.txt", [{"name": "payload_error", "mass_kg": mass, "offset_m": com,
                                                            "inertia_kg_m2": diag, "inertia_products_kg_m2": prod}])
                 log, out = d / f"load{seed}_{k}.csv", d / f"p{seed}_{k}.json"
                 _quiet(["simulate", "--trajectory", str(load_traj), "--out", str(log), "--seed", str(100 + seed),
                         "--effects", str(eff)])
                 _quiet(["payload", str(log), "--params", str(arm), "--out", str(d / f"p{seed}_{k}_payload.yaml"),
-                        "--json-out", str(out)])
+                        "--json-out", str(out), *tare])
                 est = json.loads(out.read_text())
                 from urident.simcontroller.effects.dynamics import inertia_matrix
 
@@ -98,6 +114,8 @@ def main() -> None:
                       f"inertia {'identified' if inertia_ok else 'not identifiable'}"
                       + (f" ({', '.join(f'{v:+.0f}' for v in case['principal_inertia_err_pct'])} %)" if inertia_ok else ""),
                       flush=True)
+            if args.no_gains:
+                continue
             # drive gains: torque_constant_error on, a known 5 kg load with an off-axis CoM
             tk = {"name": "torque_constant_error", "gain_factor": GAINS_FACTORS}
             load = {"name": "payload_error", "mass_kg": 5.0, "offset_m": [0.05, 0.0, 0.08]}
@@ -122,7 +140,7 @@ def main() -> None:
     with_inertia = [c for c in cases if c["inertia_identifiable"]]
     inertia_err = max((max(abs(v) for v in c["principal_inertia_err_pct"]) for c in with_inertia), default=None)
     gains_err = max((abs(e) for c in gains_cases for e, ok in zip(c["err_pct"], c["calibrated"]) if ok), default=None)
-    summary = {"robot": args.robot, "seeds": seeds, "payload_trajectory": str(load_traj.name),
+    summary = {"robot": args.robot, "seeds": seeds, "payload_trajectory": str(load_traj.name), "tare": args.tare,
                "max_mass_err_pct": mass_err, "max_com_err_mm": com_err,
                "inertia_identified_cases": len(with_inertia), "cases": len(cases),
                "max_principal_inertia_err_pct": inertia_err,

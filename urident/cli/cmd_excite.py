@@ -12,6 +12,11 @@ from urident.cli import options
 MAX_HARMONICS = 100      # what trajectory files allow (urident.excitation.files.MAX_HARMONICS)
 MAX_DURATION_S = 3600.0
 SAMPLES_PER_PERIOD = 10  # the highest harmonic gets at least this many controller ticks
+# --for-payload: the inertia needs acceleration, so four base periods (five times the frequency of
+# one); the wrist then runs at its velocity limit, kept at 0.7 so that servoJ's lag (q̇ × 0.1 s
+# lookahead) stays inside the session's 0.25 rad tracking monitor on the wrist's 3.14 rad/s
+PAYLOAD_PERIODS = 4
+PAYLOAD_VELOCITY_FRACTION = 0.7
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -28,8 +33,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help=f"order L of the series, 2-{MAX_HARMONICS} (default 5)")
     p.add_argument("--duration", type=options.float_range(0, MAX_DURATION_S), default=20.0,
                    help=f"duration [s], at most {MAX_DURATION_S:g} (default 20)")
-    p.add_argument("--periods", type=options.int_range(1, 1000), default=1,
-                   help="whole base periods in the duration; ω = 2π·periods/duration (default 1)")
+    p.add_argument("--periods", type=options.int_range(1, 1000), default=None,
+                   help="whole base periods in the duration; ω = 2π·periods/duration (default 1; "
+                        f"{PAYLOAD_PERIODS} with --for-payload)")
     p.add_argument("--seed", type=options.seed, default=0, help="random seed (default 0)")
     p.add_argument("--criterion", choices=("cond", "logdet"), default="cond",
                    help="minimise cond(Λ) (default) or maximise log det(Λ)")
@@ -42,7 +48,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--iterations", type=options.int_range(1, 100000), default=None,
                    help="L-BFGS-B iterations per start (default 100)")
     p.add_argument("--velocity-fraction", type=options.fraction, default=None,
-                   help="|q̇| ≤ fraction · robot limit (default 0.8)")
+                   help=f"|q̇| ≤ fraction · robot limit (default 0.8; {PAYLOAD_VELOCITY_FRACTION} with "
+                        "--for-payload)")
     p.add_argument("--acceleration-fraction", type=options.fraction, default=None,
                    help="|q̈| ≤ fraction · robot limit (default 1.0)")
     p.add_argument("--torque-fraction", type=options.fraction, default=None,
@@ -86,6 +93,10 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError("--for-payload needs the tool's size for the collision checks: give "
                           "--tool-capsule RADIUS,LENGTH or a --payload file with a capsule")
     spec = spec.with_tool(tool)
+    if args.periods is None:
+        args.periods = PAYLOAD_PERIODS if args.for_payload else 1
+    if args.velocity_fraction is None and args.for_payload:
+        args.velocity_fraction = PAYLOAD_VELOCITY_FRACTION
     top_hz = args.harmonics * args.periods / args.duration
     if top_hz > spec.controller_rate_hz / SAMPLES_PER_PERIOD:
         raise ConfigError(
