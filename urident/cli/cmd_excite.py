@@ -12,10 +12,12 @@ from urident.cli import options
 MAX_HARMONICS = 100      # what trajectory files allow (urident.excitation.files.MAX_HARMONICS)
 MAX_DURATION_S = 3600.0
 SAMPLES_PER_PERIOD = 10  # the highest harmonic gets at least this many controller ticks
-# --for-payload: the inertia needs acceleration, so four base periods (five times the frequency of
-# one); the wrist then runs at its velocity limit, kept at 0.7 so that servoJ's lag (q̇ × 0.1 s
-# lookahead) stays inside the session's 0.25 rad tracking monitor on the wrist's 3.14 rad/s
-PAYLOAD_PERIODS = 4
+# --for-payload: the inertia needs acceleration, so two base periods in 30 s (2.7 times the
+# frequency of one in 20 s); the wrist then runs at its velocity limit, kept at 0.7 so that
+# servoJ's lag (q̇ × 0.1 s lookahead) stays inside the session's 0.25 rad tracking monitor on a
+# 3.14 rad/s wrist. Measured with benchmarks/payload.py (README).
+PAYLOAD_PERIODS = 2
+PAYLOAD_DURATION_S = 30.0
 PAYLOAD_VELOCITY_FRACTION = 0.7
 
 
@@ -31,8 +33,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     options.add_overwrite_argument(p, "an existing trajectory file")
     p.add_argument("--harmonics", type=options.int_range(2, MAX_HARMONICS), default=5,
                    help=f"order L of the series, 2-{MAX_HARMONICS} (default 5)")
-    p.add_argument("--duration", type=options.float_range(0, MAX_DURATION_S), default=20.0,
-                   help=f"duration [s], at most {MAX_DURATION_S:g} (default 20)")
+    p.add_argument("--duration", type=options.float_range(0, MAX_DURATION_S), default=None,
+                   help=f"duration [s], at most {MAX_DURATION_S:g} (default 20; {PAYLOAD_DURATION_S:g} "
+                        "with --for-payload)")
     p.add_argument("--periods", type=options.int_range(1, 1000), default=None,
                    help="whole base periods in the duration; ω = 2π·periods/duration (default 1; "
                         f"{PAYLOAD_PERIODS} with --for-payload)")
@@ -95,6 +98,8 @@ def run(args: argparse.Namespace) -> int:
     spec = spec.with_tool(tool)
     if args.periods is None:
         args.periods = PAYLOAD_PERIODS if args.for_payload else 1
+    if args.duration is None:
+        args.duration = PAYLOAD_DURATION_S if args.for_payload else 20.0
     if args.velocity_fraction is None and args.for_payload:
         args.velocity_fraction = PAYLOAD_VELOCITY_FRACTION
     top_hz = args.harmonics * args.periods / args.duration

@@ -323,6 +323,67 @@ def _consistent(a: np.ndarray, y: np.ndarray, prior: np.ndarray, free: np.ndarra
     return np.asarray(phi.value, dtype=float)
 
 
+#: Fits of the payload, each with the side effects of the previous one's torque as columns.
+INDUCED_PASSES = 3
+
+
+def _induced(data, link: np.ndarray, tau_p: np.ndarray) -> np.ndarray:
+    """(6N, 12) columns of what a payload's torque ``tau_p`` (N, 6) changes besides itself, one
+    free coefficient per joint: the load-dependent friction it adds, z_j·(|τ_L + τ_p| − |τ_L|)
+    (τ_L: the arm's nominal link torque, z the Coulomb state; the arm model's own load-friction
+    term sees τ_L only), and the current delay's share, dτ_p/dt (the measured current lags)."""
+    from urident.model.regressor import DEFAULT_FRICTION_EPS
+
+    n = len(data)
+    joints = np.arange(6)
+    z = np.tanh(data.qd / DEFAULT_FRICTION_EPS)
+    rate = np.zeros_like(tau_p)
+    for seg in np.unique(data.segment):
+        k = np.flatnonzero(data.segment == seg)
+        if len(k) > 2:
+            rate[k] = np.gradient(tau_p[k], data.t[k], axis=0)
+    out = np.zeros((n, 6, 12))
+    out[:, joints, joints] = z * (np.abs(link + tau_p) - np.abs(link))
+    out[:, joints, 6 + joints] = rate
+    return out.reshape(-1, 12)
+
+
+def _select(a_fit: np.ndarray, y_fit: np.ndarray, nuisance: np.ndarray | None, n_rows: int):
+    """Per-joint weights from a first fit, then least squares with the nuisance columns projected
+    out, dropping the worst-determined parameter until every one left is within its tolerance:
+    (φ, σ, free, weights, weighted and projected a, y)."""
+    from urident.ident.estimate import joint_weights, row_weights
+
+    # per-joint weights from a first fit: joints differ in noise and model error by 10x
+    a0, y0 = (a_fit, y_fit) if nuisance is None else _project_out(nuisance, a_fit, y_fit)
+    free = _structural(a0)
+    if not free[0]:
+        raise PayloadError("the logs do not excite the payload mass (no gravity or acceleration "
+                           "torque of a tool mass reaches the joints)")
+    phi, _ = _ls(a0, y0, free, np.zeros(10))
+    # weights 1/(long-run std) per joint: a smooth residual carries less information per sample
+    weights = joint_weights(a0, y0, phi) / np.sqrt(joint_correlation_inflation(a0 @ phi - y0))
+    rw = row_weights(weights, n_rows)
+    aw, yw = a_fit * rw[:, None], y_fit * rw
+    if nuisance is not None:
+        aw, yw = _project_out(nuisance * rw[:, None], aw, yw)
+    free = _structural(aw)
+    phi = np.zeros(10)
+    for _ in range(20):  # drop the worst-determined parameter until all are within tolerance
+        for _ in range(3):   # fixed inertias follow the estimated mass and centre of mass
+            phi, sigma = _ls(aw, yw, free, _fixed_values(phi, free))
+        ratio = np.where(free, sigma / _tolerances(phi), 0.0)
+        ratio[0] = 0.0 if sigma[0] <= _tolerances(phi)[0] else ratio[0]
+        worst = int(np.argmax(ratio))
+        if ratio[worst] <= 1.0:
+            break
+        if worst == 0:
+            raise PayloadError(f"the logs do not determine the payload mass (σ {sigma[0]:.3g} kg "
+                               f"for {phi[0]:.3g} kg)")
+        free[worst] = False
+    return phi, sigma, free, weights, aw, yw
+
+
 def _nuisance(spec, data, blocks: np.ndarray) -> np.ndarray:
     """(N, 6, 28) columns of what the arm model gets wrong on a motion whether or not the tool is
     mounted: its own last body (ten parameters, the payload's columns: a 'phantom payload') and
@@ -357,7 +418,7 @@ def estimate_payload(params, spec, data, mass_range=None, regularisation: float 
     own errors on that motion (its last body's parameters, which add to the payload's exactly,
     and each joint's friction and offset, :func:`_nuisance`) are then fit jointly on both and
     removed: what is left in the loaded run is the tool's alone."""
-    from urident.ident.estimate import joint_weights, row_weights
+    from urident.ident.design import nominal_link_torque
     from urident.ident.estimate_consistent import DEFAULT_REGULARISATION
     from urident.ident.identify import predict_prepared
     from urident.ident.metrics import error_metrics
@@ -385,33 +446,14 @@ def estimate_payload(params, spec, data, mass_range=None, regularisation: float 
         nuisance = np.vstack([_nuisance(spec, data, blocks).reshape(-1, 28),
                               _nuisance(spec, unloaded, blocks_u).reshape(-1, 28)])
         n_rows = n + len(unloaded)
-    # per-joint weights from a first fit: joints differ in noise and model error by 10x
-    a0, y0 = (a_fit, y_fit) if nuisance is None else _project_out(nuisance, a_fit, y_fit)
-    free = _structural(a0)
-    if not free[0]:
-        raise PayloadError("the logs do not excite the payload mass (no gravity or acceleration "
-                           "torque of a tool mass reaches the joints)")
-    phi, _ = _ls(a0, y0, free, np.zeros(10))
-    # weights 1/(long-run std) per joint: a smooth residual carries less information per sample
-    weights = joint_weights(a0, y0, phi) / np.sqrt(joint_correlation_inflation(a0 @ phi - y0))
-    rw = row_weights(weights, n_rows)
-    aw, yw = a_fit * rw[:, None], y_fit * rw
-    if nuisance is not None:
-        aw, yw = _project_out(nuisance * rw[:, None], aw, yw)
-    free = _structural(aw)
-    phi = np.zeros(10)
-    for _ in range(20):  # drop the worst-determined parameter until all are within tolerance
-        for _ in range(3):   # fixed inertias follow the estimated mass and centre of mass
-            phi, sigma = _ls(aw, yw, free, _fixed_values(phi, free))
-        ratio = np.where(free, sigma / _tolerances(phi), 0.0)
-        ratio[0] = 0.0 if sigma[0] <= _tolerances(phi)[0] else ratio[0]
-        worst = int(np.argmax(ratio))
-        if ratio[worst] <= 1.0:
-            break
-        if worst == 0:
-            raise PayloadError(f"the logs do not determine the payload mass (σ {sigma[0]:.3g} kg "
-                               f"for {phi[0]:.3g} kg)")
-        free[worst] = False
+    link = nominal_link_torque(spec, blocks)
+    phi = None
+    for _ in range(INDUCED_PASSES):   # the payload's side effects follow its estimate
+        extra = None if phi is None else _induced(data, link, (a @ phi).reshape(-1, 6))
+        if extra is not None and unloaded is not None:
+            extra = np.vstack([extra, np.zeros((6 * len(unloaded), extra.shape[1]))])
+        parts = [x for x in (nuisance, extra) if x is not None]
+        phi, sigma, free, weights, aw, yw = _select(a_fit, y_fit, np.hstack(parts) if parts else None, n_rows)
     ew = aw @ phi - yw
     noise_var = max(float(ew @ ew) / max(len(yw) - int(free.sum()), 1), 1e-300)
     identifiable = tuple(name for name, f in zip(PAYLOAD_FIELDS, free) if f)
