@@ -3,12 +3,16 @@ with the realistic preset of unmodelled effects on.
 
 Per seed: the arm is identified (``urident identify``, paper model plus offset, load-friction and
 Stribeck columns) on the robot's identification trajectory without a load; then each payload
-(0.3 to 10 kg, off-axis centre of mass, a full inertia) rides the validation trajectory and
-``urident payload`` estimates it with that arm. Drive gains: ``torque_constant_error`` on, the
-identification trajectory without and with a known 5 kg load, ``urident drive-gains``; scored on
-the joints it reports as calibrated. Prints one line per case; the last line is one JSON object.
+(0.3 to 10 kg, off-axis centre of mass, a full inertia) rides the payload excitation trajectory
+(``experiments/ROBOT_payload.yaml``, from ``urident excite --for-payload``) and ``urident payload``
+estimates it with that arm and a tare: the same trajectory run without the tool (``--unloaded``;
+``--no-tare`` to leave it out). Drive gains: ``torque_constant_error`` on, the payload trajectory
+(``--gains-trajectory``) without and with a known 5 kg load, ``urident drive-gains``; scored on the
+joints it reports as calibrated. Principal inertias are scored where the estimate reports the
+inertia identifiable. Prints one line per case; the last line is one JSON object.
 
-    python benchmarks/payload.py [--robot ur10e] [--seeds 1,2,3] [--trajectory FILE]
+    python benchmarks/payload.py [--robot ur10e] [--seeds 1,2,3] [--trajectory FILE] [--no-tare]
+                                 [--gains-trajectory FILE] [--payloads 0,3] [--no-gains | --gains-only]
 """
 
 from __future__ import annotations
@@ -55,33 +59,55 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--robot", default="ur10e")
     ap.add_argument("--seeds", default="1,2,3")
-    ap.add_argument("--trajectory", default=None, help="loaded runs' trajectory (default: the robot's validation one)")
+    ap.add_argument("--trajectory", default=None,
+                    help="loaded runs' trajectory (default: experiments/ROBOT_payload.yaml)")
+    ap.add_argument("--payloads", default=None, help="indices into PAYLOADS to run (default: all)")
+    ap.add_argument("--no-gains", action="store_true", help="skip the drive-gain runs")
+    ap.add_argument("--gains-only", action="store_true", help="only the drive-gain runs")
+    ap.add_argument("--gains-trajectory", default=None,
+                    help="the with/without pair's trajectory (default: the payload trajectory)")
+    ap.add_argument("--no-tare", dest="tare", action="store_false",
+                    help="no unloaded run of the payload trajectory (urident payload without --unloaded)")
+    ap.add_argument("--workdir", default=None, help="keep the runs in this directory (default: a temporary one)")
     args = ap.parse_args()
     from urident.ident.payload import Payload
     from urident.model import load_robot
 
     spec = load_robot(args.robot)
     ident_traj = ROOT / "experiments" / f"{args.robot}_ident.yaml"
-    load_traj = Path(args.trajectory) if args.trajectory else ROOT / "experiments" / f"{args.robot}_valid.yaml"
+    load_traj = Path(args.trajectory) if args.trajectory else ROOT / "experiments" / f"{args.robot}_payload.yaml"
+    chosen = [int(k) for k in args.payloads.split(",")] if args.payloads else range(len(PAYLOADS))
+    if args.gains_only:
+        chosen = []
+    gains_traj = Path(args.gains_trajectory) if args.gains_trajectory else load_traj
     seeds = [int(s) for s in args.seeds.split(",")]
     cases, gains_cases = [], []
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
-        d = Path(tmp)
+        d = Path(args.workdir or tmp)
+        d.mkdir(parents=True, exist_ok=True)
         for seed in seeds:
             arm_log, arm = d / f"arm{seed}.csv", d / f"arm{seed}_params.yaml"
-            _quiet(["simulate", "--trajectory", str(ident_traj), "--out", str(arm_log), "--seed", str(seed),
-                    "--effects", str(_effects(d / f"e_arm{seed}.txt", []))])
-            _quiet(["identify", str(arm_log), "--robot", args.robot, "--out", str(arm),
-                    "--friction-extra", "offset,load,stribeck"])
-            for k, (mass, com, diag, prod) in enumerate(PAYLOADS):
+            if chosen:
+                _quiet(["simulate", "--trajectory", str(ident_traj), "--out", str(arm_log), "--seed", str(seed),
+                        "--effects", str(_effects(d / f"e_arm{seed}.txt", []))])
+                _quiet(["identify", str(arm_log), "--robot", args.robot, "--out", str(arm),
+                        "--friction-extra", "offset,load,stribeck"])
+            tare = []
+            if args.tare and chosen:  # the payload trajectory without the tool (its own noise seed)
+                tare_log = d / f"unloaded{seed}.csv"
+                _quiet(["simulate", "--trajectory", str(load_traj), "--out", str(tare_log), "--seed",
+                        str(300 + seed), "--effects", str(_effects(d / f"e_tare{seed}.txt", []))])
+                tare = ["--unloaded", str(tare_log)]
+            for k in chosen:
+                mass, com, diag, prod = PAYLOADS[k]
                 eff = _effects(d / f"e_{seed}_{k}.txt", [{"name": "payload_error", "mass_kg": mass, "offset_m": com,
                                                            "inertia_kg_m2": diag, "inertia_products_kg_m2": prod}])
                 log, out = d / f"load{seed}_{k}.csv", d / f"p{seed}_{k}.json"
                 _quiet(["simulate", "--trajectory", str(load_traj), "--out", str(log), "--seed", str(100 + seed),
                         "--effects", str(eff)])
                 _quiet(["payload", str(log), "--params", str(arm), "--out", str(d / f"p{seed}_{k}_payload.yaml"),
-                        "--json-out", str(out)])
+                        "--json-out", str(out), *tare])
                 est = json.loads(out.read_text())
                 from urident.simcontroller.effects.dynamics import inertia_matrix
 
@@ -98,13 +124,15 @@ def main() -> None:
                       f"inertia {'identified' if inertia_ok else 'not identifiable'}"
                       + (f" ({', '.join(f'{v:+.0f}' for v in case['principal_inertia_err_pct'])} %)" if inertia_ok else ""),
                       flush=True)
+            if args.no_gains:
+                continue
             # drive gains: torque_constant_error on, a known 5 kg load with an off-axis CoM
             tk = {"name": "torque_constant_error", "gain_factor": GAINS_FACTORS}
             load = {"name": "payload_error", "mass_kg": 5.0, "offset_m": [0.05, 0.0, 0.08]}
             runs = []
             for name, extra in (("without", [tk]), ("with", [tk, load])):
                 log = d / f"g_{name}{seed}.csv"
-                _quiet(["simulate", "--trajectory", str(ident_traj), "--out", str(log), "--seed", str(200 + seed),
+                _quiet(["simulate", "--trajectory", str(gains_traj), "--out", str(log), "--seed", str(200 + seed),
                         "--effects", str(_effects(d / f"e_g{name}{seed}.txt", extra))])
                 runs.append(str(log))
             gj = d / f"g{seed}.json"
@@ -117,20 +145,22 @@ def main() -> None:
             gains_cases.append({"seed": seed, "err_pct": [float(v) for v in err], "calibrated": g["calibrated"]})
             print(f"seed {seed}, drive gains error %: " + " ".join(f"{v:+.2f}" for v in err)
                   + "  calibrated: " + "".join("y" if c else "n" for c in g["calibrated"]), flush=True)
-    mass_err = max(abs(c["mass_err_pct"]) for c in cases)
-    com_err = max(c["com_err_mm"] for c in cases)
+    mass_err = max((abs(c["mass_err_pct"]) for c in cases), default=None)
+    com_err = max((c["com_err_mm"] for c in cases), default=None)
     with_inertia = [c for c in cases if c["inertia_identifiable"]]
     inertia_err = max((max(abs(v) for v in c["principal_inertia_err_pct"]) for c in with_inertia), default=None)
     gains_err = max((abs(e) for c in gains_cases for e, ok in zip(c["err_pct"], c["calibrated"]) if ok), default=None)
-    summary = {"robot": args.robot, "seeds": seeds, "payload_trajectory": str(load_traj.name),
+    summary = {"robot": args.robot, "seeds": seeds, "payload_trajectory": str(load_traj.name), "tare": args.tare,
+               "gains_trajectory": str(gains_traj.name),
                "max_mass_err_pct": mass_err, "max_com_err_mm": com_err,
                "inertia_identified_cases": len(with_inertia), "cases": len(cases),
                "max_principal_inertia_err_pct": inertia_err,
                "max_calibrated_drive_gain_err_pct": gains_err,
                "calibrated_joints": [c["calibrated"] for c in gains_cases],
                "wall_s": time.perf_counter() - t0}
-    print(f"max mass error {mass_err:.2f} %, max CoM error {com_err:.2f} mm, inertia identified in "
-          f"{len(with_inertia)}/{len(cases)} cases" + (f" (max principal error {inertia_err:.1f} %)" if with_inertia else "")
+    print((f"max mass error {mass_err:.2f} %, max CoM error {com_err:.2f} mm, inertia identified in "
+           f"{len(with_inertia)}/{len(cases)} cases" if cases else "no payload cases")
+          + (f" (max principal error {inertia_err:.1f} %)" if with_inertia else "")
           + (f", max drive-gain error on calibrated joints {gains_err:.2f} %" if gains_err is not None else ""))
     print(json.dumps(summary))
 

@@ -67,3 +67,45 @@ def test_payload_error_is_a_rigid_body():
     np.testing.assert_allclose(tau_effect, payload_torque(spec, p, q, qd, qdd), atol=1e-9)
     point = joint_torques(spec, payload_params(spec, 3.0, p.com_m), q, qd, qdd, 0.01)
     assert np.max(np.abs(tau_effect - point)) > 0.01      # the inertia matters
+
+
+def test_urident_run_records_the_declared_payload_and_reports_show_it(tmp_path):
+    import argparse
+    import io
+    import subprocess
+    import sys
+
+    from urident.excitation import FourierTrajectory, Limits, trajectory_document, write_trajectory
+    from urident.excitation.fourier import base_frequency
+    from urident.logs import load_log
+    from urident.logs.cli_args import load_log_from_args
+    from urident.logs.sidecar import declared_payload
+
+    host, start = "127.0.0.42", [0.0, -1.5708, 0.0, -1.5708, 0.0, 0.0]
+    spec = load_robot("ur5e")
+    free = np.random.default_rng(1).normal(scale=0.1, size=(6, 4))
+    traj = tmp_path / "t.yaml"
+    write_trajectory(traj, trajectory_document("ur5e", FourierTrajectory.from_free(
+        free, base_frequency(2.0), np.array(start), 2.0), Limits.from_robot(spec)))
+    config = tmp_path / "relaxed.yaml"
+    config.write_text("monitors:\n  max_late_fraction: 0.9\n  max_consecutive_late: 100000\nrest_s: 0.2\n")
+    out = tmp_path / "run.csv"
+    mass, cog, inertia = 1.5, [0.0, 0.01, 0.07], [0.004, 0.005, 0.003, 0.0, 0.0, 0.0]
+    with SimControllerProcess(host=host, robot="ur5e", initial_q=start):
+        control = rtde_control.RTDEControlInterface(host)
+        try:   # the installation's payload, set before the session (it persists across programs)
+            assert control.setTargetPayload(mass, cog, inertia)
+            control.stopScript()
+        finally:
+            control.disconnect()
+        r = subprocess.run([sys.executable, "-m", "urident.cli.main", "run", "--robot", "ur5e", "--host", host,
+                            "--trajectory", str(traj), "--out", str(out), "--config", str(config), "--yes"],
+                           capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL)
+    assert r.returncode == 0, r.stderr
+    recorded = declared_payload(load_log(out).metadata)
+    assert recorded is not None
+    assert recorded["mass_kg"] == pytest.approx(mass) and recorded["cog_m"] == pytest.approx(cog)
+    assert recorded["inertia_kg_m2"] == pytest.approx(inertia)
+    report = io.StringIO()   # what validate, gap, identify and payload print for every log they load
+    load_log_from_args(out, argparse.Namespace(), robot="ur5e", report=report)
+    assert "payload declared to the controller" in report.getvalue() and "1.5 kg" in report.getvalue()

@@ -29,11 +29,15 @@ def run(args: argparse.Namespace) -> int:
     loaded = load_trajectory(args.file)
     report = check_trajectory(loaded.spec, loaded.trajectory, rate_hz=args.rate, limits=loaded.limits)
     if args.json:
-        print(json.dumps({"file": str(args.file), **report.as_dict()}))
+        tool = loaded.tool.as_dict() if loaded.tool is not None else None
+        print(json.dumps({"file": str(args.file), "tool_capsule": tool, **report.as_dict()}))
     else:
         traj = loaded.trajectory
         print(f"{args.file}: {loaded.spec.description}, L = {traj.harmonics}, {traj.duration:g} s, "
               f"{report.n_samples} samples at {report.rate_hz:g} Hz")
+        if loaded.tool is not None:
+            print(f"  tool capsule on the flange (from the file): radius {loaded.tool.radius_m:g} m, "
+                  f"length {loaded.tool.length_m:g} m, checked against every link and the floor")
         width = max(len(n) for n in report.joint_names)
         units = {**UNITS, "rest": "rad/s, rad/s^2"}
         print(f"  {'tightest margin':<28}" + "".join(f"{n:>{width + 2}}" for n in report.joint_names))

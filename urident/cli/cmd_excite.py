@@ -12,6 +12,13 @@ from urident.cli import options
 MAX_HARMONICS = 100      # what trajectory files allow (urident.excitation.files.MAX_HARMONICS)
 MAX_DURATION_S = 3600.0
 SAMPLES_PER_PERIOD = 10  # the highest harmonic gets at least this many controller ticks
+# --for-payload: the inertia needs acceleration, so two base periods in 30 s (2.7 times the
+# frequency of one in 20 s); the wrist then runs at its velocity limit, kept at 0.7 so that
+# servoJ's lag (q̇ × 0.1 s lookahead) stays inside the session's 0.25 rad tracking monitor on a
+# 3.14 rad/s wrist. Measured with benchmarks/payload.py (README).
+PAYLOAD_PERIODS = 2
+PAYLOAD_DURATION_S = 30.0
+PAYLOAD_VELOCITY_FRACTION = 0.7
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -26,10 +33,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     options.add_overwrite_argument(p, "an existing trajectory file")
     p.add_argument("--harmonics", type=options.int_range(2, MAX_HARMONICS), default=5,
                    help=f"order L of the series, 2-{MAX_HARMONICS} (default 5)")
-    p.add_argument("--duration", type=options.float_range(0, MAX_DURATION_S), default=20.0,
-                   help=f"duration [s], at most {MAX_DURATION_S:g} (default 20)")
-    p.add_argument("--periods", type=options.int_range(1, 1000), default=1,
-                   help="whole base periods in the duration; ω = 2π·periods/duration (default 1)")
+    p.add_argument("--duration", type=options.float_range(0, MAX_DURATION_S), default=None,
+                   help=f"duration [s], at most {MAX_DURATION_S:g} (default 20; {PAYLOAD_DURATION_S:g} "
+                        "with --for-payload)")
+    p.add_argument("--periods", type=options.int_range(1, 1000), default=None,
+                   help="whole base periods in the duration; ω = 2π·periods/duration (default 1; "
+                        f"{PAYLOAD_PERIODS} with --for-payload)")
     p.add_argument("--seed", type=options.seed, default=0, help="random seed (default 0)")
     p.add_argument("--criterion", choices=("cond", "logdet"), default="cond",
                    help="minimise cond(Λ) (default) or maximise log det(Λ)")
@@ -42,7 +51,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--iterations", type=options.int_range(1, 100000), default=None,
                    help="L-BFGS-B iterations per start (default 100)")
     p.add_argument("--velocity-fraction", type=options.fraction, default=None,
-                   help="|q̇| ≤ fraction · robot limit (default 0.8)")
+                   help=f"|q̇| ≤ fraction · robot limit (default 0.8; {PAYLOAD_VELOCITY_FRACTION} with "
+                        "--for-payload)")
     p.add_argument("--acceleration-fraction", type=options.fraction, default=None,
                    help="|q̈| ≤ fraction · robot limit (default 1.0)")
     p.add_argument("--torque-fraction", type=options.fraction, default=None,
@@ -55,6 +65,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="minimum capsule distance to the floor and between links [m] (default 0.05)")
     p.add_argument("--floor-height", type=options.finite_float, default=None,
                    help="height of the floor / mount plane in the base frame [m] (default 0)")
+    p.add_argument("--for-payload", action="store_true",
+                   help="design a payload excitation: minimise the condition number of the ten "
+                        "payload columns (mass, centre of mass, inertia as seen through the flange, "
+                        "the arm's parameters known), joints 1-3 within 20 %% of their velocity and "
+                        "acceleration limits (wrist-dominated); needs the tool's size "
+                        "(--tool-capsule or a --payload file with a capsule)")
+    options.add_payload_argument(p, "its capsule (if any) is the tool's size for the collision checks")
+    options.add_tool_capsule_argument(p)
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=run)
 
@@ -73,6 +91,17 @@ def run(args: argparse.Namespace) -> int:
 
     out = options.output_path("--out", args.out, args.overwrite)
     spec = load_robot(args.robot)
+    tool, tool_source = _tool(args, spec)
+    if args.for_payload and tool is None:
+        raise ConfigError("--for-payload needs the tool's size for the collision checks: give "
+                          "--tool-capsule RADIUS,LENGTH or a --payload file with a capsule")
+    spec = spec.with_tool(tool)
+    if args.periods is None:
+        args.periods = PAYLOAD_PERIODS if args.for_payload else 1
+    if args.duration is None:
+        args.duration = PAYLOAD_DURATION_S if args.for_payload else 20.0
+    if args.velocity_fraction is None and args.for_payload:
+        args.velocity_fraction = PAYLOAD_VELOCITY_FRACTION
     top_hz = args.harmonics * args.periods / args.duration
     if top_hz > spec.controller_rate_hz / SAMPLES_PER_PERIOD:
         raise ConfigError(
@@ -90,7 +119,8 @@ def run(args: argparse.Namespace) -> int:
         margins = Margins(**{k: v for k, v in margin_args.items() if v is not None})
         settings = ExcitationSettings(harmonics=args.harmonics, duration_s=args.duration,
                                       periods=args.periods, criterion=args.criterion,
-                                      reduced=args.reduced, seed=args.seed, margins=margins)
+                                      reduced=args.reduced, seed=args.seed, margins=margins,
+                                      for_payload=args.for_payload)
         if args.q0 is not None:
             settings = replace(settings, q0=tuple(args.q0))
         if args.starts is not None:
@@ -117,15 +147,23 @@ def run(args: argparse.Namespace) -> int:
                     "limit_samples": settings.limit_samples, "periods": settings.periods,
                     "wall_s": round(result.wall_s, 3), "evaluations": result.evaluations}
     criteria = {**result.criteria.as_dict(), "rate_hz": spec.controller_rate_hz, "reduced": settings.reduced}
+    if settings.for_payload:
+        optimization.update(for_payload=True, arm_joint_fraction=settings.arm_joint_fraction)
+        criteria["payload_cond"] = result.payload_cond
     report = check_trajectory(spec, result.trajectory, limits=result.limits)
     report.raise_if_unsafe(f"{args.out} (not written)")
     check = {"ok": report.ok, "rate_hz": report.rate_hz, "min_distance_m": report.min_distance_m,
              "min_distance_pair": report.min_distance_pair, "collision_margin_m": report.collision_margin_m}
-    document = trajectory_document(robot_ref, result.trajectory, result.limits, optimization, criteria, check)
+    document = trajectory_document(robot_ref, result.trajectory, result.limits, optimization, criteria, check,
+                                   tool=tool)
+    what = (f"payload excitation (wrist-dominated): cond of the payload columns = {result.payload_cond:.4g};\n"
+            if settings.for_payload else "")
     header = (f"urident excitation trajectory for {spec.description}: Kovincic et al. (2019) eq. (25),\n"
-              f"at rest at both ends. cond(Θ̄_B) = {result.criteria.cond_theta:.4g} "
+              f"at rest at both ends. {what}cond(Θ̄_B) = {result.criteria.cond_theta:.4g} "
               f"(cond Λ = {result.criteria.cond_lambda:.4g}; columns scaled by reference RMS).\n"
-              f"Re-check with: urident check-trajectory {args.out}")
+              + (f"Tool capsule (collision checks): radius {tool.radius_m:g} m, length {tool.length_m:g} m "
+                 f"along the flange z axis ({tool_source}).\n" if tool is not None else "")
+              + f"Re-check with: urident check-trajectory {args.out}")
     # what check-trajectory will read: the written text, parsed back and checked before writing
     text = trajectory_text(document, header)
     loaded = parse_trajectory_document(parse_yaml(text, f"{out} (not written)"), out)
@@ -134,14 +172,31 @@ def run(args: argparse.Namespace) -> int:
             f"{args.out} (not written)")
     write_trajectory(out, document, header, overwrite=args.overwrite)
     print(f"wrote {args.out}: {spec.name}, L = {settings.harmonics}, {settings.duration_s:g} s, "
-          f"cond(Θ̄_B) = {result.criteria.cond_theta:.4g} (cond Λ = {result.criteria.cond_lambda:.4g}, "
+          + (f"payload columns cond {result.payload_cond:.4g}, " if settings.for_payload else "")
+          + f"cond(Θ̄_B) = {result.criteria.cond_theta:.4g} (cond Λ = {result.criteria.cond_lambda:.4g}, "
           f"{result.criteria.n_base} base parameters), min distance {report.min_distance_m:.4f} m "
           f"({report.min_distance_pair}), {result.wall_s:.1f} s")
+    if tool is not None:
+        print(f"tool capsule radius {tool.radius_m:g} m, length {tool.length_m:g} m ({tool_source}): "
+              f"recorded in the file, part of every check of it (check-trajectory, run)")
     note = spec.nominal_note(("inertia_com", "rotor_inertia", "viscous_friction", "coulomb_friction",
                               "acceleration_limit", "torque_limit"))
     if note:  # the torque and acceleration checks use them
         print(note)
     return 0
+
+
+def _tool(args: argparse.Namespace, spec):
+    """The tool's capsule and where it came from: --tool-capsule, else the --payload file's."""
+    from urident.model.robot import ToolCapsule
+
+    payload = options.load_payload_arg(args, spec)
+    if args.tool_capsule is not None:
+        return args.tool_capsule, "--tool-capsule"
+    cap = payload.info.get("capsule") if payload is not None else None
+    if cap:
+        return ToolCapsule(cap["radius_m"], cap["length_m"]), f"capsule of {args.payload}"
+    return None, ""
 
 
 def _same(loaded, result) -> bool:

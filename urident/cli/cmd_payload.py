@@ -38,6 +38,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "URScript set_target_payload line.")
     p.add_argument("logs", nargs="+", metavar="LOG", help="logs recorded with the tool mounted")
     p.add_argument("--params", required=True, metavar="ARM.yaml", help="the arm's parameters file")
+    p.add_argument("--unloaded", nargs="+", metavar="LOG", default=None,
+                   help="runs of the same trajectory without the tool (a tare): the arm model's own "
+                        "errors on that motion (its last body, friction, offsets) are fit on both and "
+                        "removed, which small tools and the inertia need")
     p.add_argument("--robot", default=None, help="robot (default: the parameters file's)")
     p.add_argument("--out", required=True, metavar="PAYLOAD.yaml", help="payload file to write")
     p.add_argument("--json-out", metavar="FILE", default=None, help="also write the result as JSON")
@@ -68,16 +72,23 @@ def run(args: argparse.Namespace) -> int:
     check_compatible(arm, spec, str(args.params))
     recordings = [load_log_from_args(p, args, robot=spec.name) for p in args.logs]
     prediction = predict_recordings(arm, recordings, spec, drive_gains=args.drive_gains or None)
-    est = estimate_payload(arm, spec, prediction.data, args.mass_range)
+    unloaded = None
+    if args.unloaded:
+        tare = [load_log_from_args(p, args, robot=spec.name) for p in args.unloaded]
+        unloaded = predict_recordings(arm, tare, spec, drive_gains=args.drive_gains or None).data
+    est = estimate_payload(arm, spec, prediction.data, args.mass_range, unloaded=unloaded)
     gains = prediction.data.drive_gains
     fit = {"n_samples": est.n_samples, "e_n_arm_alone": float(est.train_e_n_arm),
            "e_n_with_payload": float(est.train_e_n),
            "rms_nm_arm_alone": [float(v) for v in est.train_rms_arm],
            "rms_nm_with_payload": [float(v) for v in est.train_rms],
-           "drive_gains": [float(g) for g in gains], "params": str(args.params)}
+           "drive_gains": [float(g) for g in gains], "params": str(args.params),
+           "unloaded_logs": [str(p) for p in args.unloaded or []]}
     save_payload(est.consistent, args.out, overwrite=args.overwrite, fit=fit)
     fixed = [n for n in _fields() if n not in est.consistent.identifiable]
-    lines = [f"payload on {spec.name} from {len(args.logs)} log(s), {est.n_samples} samples, arm {args.params}",
+    lines = [f"payload on {spec.name} from {len(args.logs)} log(s), {est.n_samples} samples, arm {args.params}"
+             + (f", tare: {len(args.unloaded)} unloaded log(s) of {len(unloaded)} samples (the arm's own "
+                "last-body, friction and offset errors removed)" if unloaded is not None else ""),
              f"  least squares:        {est.ols.describe()}",
              f"  physically consistent: {est.consistent.describe()}",
              f"  sigma: mass {est.ols.sigma['mass_kg']:.4f} kg, centre of mass "

@@ -376,6 +376,29 @@ def load_payload_arg(args: argparse.Namespace, spec):
     return payload
 
 
+def tool_capsule(text: str):
+    """``--tool-capsule RADIUS,LENGTH`` [m]: a tool's bounding capsule on the flange, its axis from
+    the flange centre LENGTH out along the flange z axis (:class:`urident.model.robot.ToolCapsule`);
+    RADIUS > 0, LENGTH ≥ 0."""
+    from urident.model.robot import ToolCapsule
+
+    parts = [p.strip() for p in str(text).split(",")]
+    try:
+        radius, length = (float(p) for p in parts)
+        return ToolCapsule(radius, length)
+    except ValueError as exc:
+        detail = str(exc) if str(exc).startswith("tool capsule") else f"not {shown(text)!r}"
+        raise argparse.ArgumentTypeError(f"must be RADIUS,LENGTH in metres (radius > 0, length >= 0): "
+                                         f"{detail}") from None
+
+
+def add_tool_capsule_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--tool-capsule", type=tool_capsule, default=None, metavar="RADIUS,LENGTH",
+                        help="a tool on the flange for the collision checks: a capsule of RADIUS [m] "
+                             "whose axis runs LENGTH [m] from the flange centre along the flange z "
+                             "axis (default: the --payload file's capsule, if any)")
+
+
 def log_list_file(text: str) -> tuple[str, ...]:
     """``--logs-from FILE``: the logs listed in FILE, one path (or directory, or glob) a line;
     blank lines and ``#`` comments skipped, relative paths taken from FILE's directory."""

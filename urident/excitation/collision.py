@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from urident.model.kinematics import frame_poses
-from urident.model.pinocchio_model import collision_link_pairs, floor_checked_links
+from urident.model.pinocchio_model import TOOL_LINK, collision_link_pairs, floor_checked_links
 from urident.model.robot import RobotSpec
 
 NEAR_PAIR_FRACTION = 0.5
@@ -114,7 +114,8 @@ def capsule_model(spec: RobotSpec, clearance_m: float, floor_height_m: float = 0
 def _geometry(spec: RobotSpec, floor_height_m: float) -> dict:
     frame, a, b, radius, names = [], [], [], [], []
     groups: dict[str, list[int]] = {}
-    links = [("base", -1, spec.base_collision)] + [(j.name, i, j.collision) for i, j in enumerate(spec.joints)]
+    links = ([("base", -1, spec.base_collision)] + [(j.name, i, j.collision) for i, j in enumerate(spec.joints)]
+             + [(TOOL_LINK, len(spec.joints) - 1, spec.tool_collision)])
     for link, index, capsules in links:
         groups[link] = []
         for k, cap in enumerate(capsules):
@@ -146,7 +147,7 @@ _EXTENT_CACHE: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
 def _pair_extent(spec: RobotSpec, floor_height_m: float) -> tuple[np.ndarray, np.ndarray]:
     """Largest sampled distance of each pair and whether its distance is configuration-independent
     (deterministic: a fixed-seed sample of joint space; cached per geometry)."""
-    key = (floor_height_m, spec.tool_xyz.tobytes(), repr(spec.base_collision),
+    key = (floor_height_m, spec.tool_xyz.tobytes(), repr(spec.base_collision), repr(spec.tool_collision),
            repr([(j.xyz.tobytes(), j.rotation.tobytes(), j.axis, j.collision) for j in spec.joints]),
            tuple(collision_link_pairs(spec)), tuple(floor_checked_links(spec)))
     if key not in _EXTENT_CACHE:

@@ -27,6 +27,9 @@ Format (``format_version: 1``)::
       qd_max_rad_s: [...]
       qdd_max_rad_s2: [...]
       tau_max_nm: [...]
+    tool_capsule: {radius_m: 0.05, length_m: 0.15}   # optional: a tool on the flange (see
+                                        # urident.model.robot.ToolCapsule); every check of this
+                                        # trajectory (check-trajectory, urident run) includes it
     optimization: {...}                 # optional: criterion, reduced, seed, settings, wall_s
     criteria: {...}                     # optional: cond_theta, cond_lambda, logdet_lambda, ...
     check: {...}                        # optional: rate_hz, min_distance_m, min_distance_pair
@@ -51,14 +54,14 @@ from urident import __version__
 from urident.errors import ConfigError
 from urident.excitation.constraints import Limits, Margins
 from urident.excitation.fourier import FourierTrajectory
-from urident.model.robot import RobotSpec, load_robot
+from urident.model.robot import RobotSpec, ToolCapsule, load_robot
 from urident.yamlio import Fields, load_yaml
 
 FORMAT_NAME = "urident-excitation-trajectory"
 FORMAT_VERSION = 1
 MAX_HARMONICS = 100
 _TOP_KEYS = {"format", "format_version", "urident_version", "robot", "trajectory", "limits",
-             "optimization", "criteria", "check"}
+             "tool_capsule", "optimization", "criteria", "check"}
 _REQUIRED_TOP = ("format", "format_version", "robot", "trajectory", "limits")
 _TRAJ_KEYS = {"harmonics", "duration_s", "base_frequency_rad_s", "q0_rad", "a_rad_s", "b_rad_s",
               "q_start_rad"}
@@ -67,9 +70,10 @@ _MARGIN_KEYS = {"velocity_fraction", "acceleration_fraction", "torque_fraction",
 _ABS_LIMIT_KEYS = {"q_min_rad": "q_min", "q_max_rad": "q_max", "qd_max_rad_s": "qd_max",
                    "qdd_max_rad_s2": "qdd_max", "tau_max_nm": "tau_max"}
 _OPT_KEYS = {"criterion", "reduced", "seed", "starts", "iterations", "criterion_samples",
-             "collision_samples", "limit_samples", "periods", "wall_s", "evaluations"}
+             "collision_samples", "limit_samples", "periods", "wall_s", "evaluations", "for_payload",
+             "arm_joint_fraction"}
 _CRITERIA_KEYS = {"cond_theta", "cond_lambda", "logdet_lambda", "cond_theta_raw", "cond_theta_equilibrated", "n_samples",
-                  "n_base", "rate_hz", "reduced"}
+                  "n_base", "rate_hz", "reduced", "payload_cond"}
 _CHECK_KEYS = {"rate_hz", "min_distance_m", "min_distance_pair", "collision_margin_m", "ok"}
 
 
@@ -96,12 +100,23 @@ class TrajectoryFile:
     def min_distance_m(self) -> float | None:
         return self.check.get("min_distance_m")
 
+    @property
+    def tool(self) -> ToolCapsule | None:
+        return self.spec.tool
+
+    def checked_spec(self, spec: RobotSpec) -> RobotSpec:
+        """``spec`` with this file's tool mounted: a trajectory designed for a tool is always
+        checked with it."""
+        return spec.with_tool(self.spec.tool)
+
 
 def trajectory_document(robot: str, trajectory: FourierTrajectory, limits: Limits,
                         optimization: dict[str, Any] | None = None,
                         criteria: dict[str, Any] | None = None,
-                        check: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The YAML document (plain Python types) for a trajectory file."""
+                        check: dict[str, Any] | None = None,
+                        tool: ToolCapsule | None = None) -> dict[str, Any]:
+    """The YAML document (plain Python types) for a trajectory file (``tool``: the mounted tool
+    its checks include)."""
     omega = trajectory.omega
     shared = bool(np.all(omega == omega[0]))
     m = limits.margins
@@ -130,6 +145,8 @@ def trajectory_document(robot: str, trajectory: FourierTrajectory, limits: Limit
             **{key: _floats(getattr(limits, attr)) for key, attr in _ABS_LIMIT_KEYS.items()},
         },
     }
+    if tool is not None:
+        doc["tool_capsule"] = tool.as_dict()
     for key, value in (("optimization", optimization), ("criteria", criteria), ("check", check)):
         if value:
             doc[key] = _plain(value)
@@ -187,6 +204,11 @@ def parse_trajectory_document(data: Any, path: Path | None = None) -> Trajectory
         spec = load_robot(robot_ref)
     except ConfigError as exc:
         raise r.fail("robot", str(exc)) from None
+    if data.get("tool_capsule") is not None:
+        cap = r.mapping(data["tool_capsule"], "tool_capsule")
+        r.keys(cap, {"radius_m", "length_m"}, "tool_capsule", required=("radius_m", "length_m"))
+        spec = spec.with_tool(ToolCapsule(r.number(cap, "radius_m", "tool_capsule", positive=True),
+                                          r.number(cap, "length_m", "tool_capsule", nonnegative=True)))
 
     traj = r.get(data, "trajectory", dict)
     r.keys(traj, _TRAJ_KEYS, "trajectory")

@@ -14,6 +14,14 @@ Method
   L-BFGS-B runs from the best few of many seeded random feasible starts.
 * The result is projected onto the limits at the controller rate, and shrunk towards q0 if the dense
   collision check needs it, so it passes :func:`check_trajectory`.
+
+Payload excitation (``for_payload``): the criterion is the condition number of the ten payload
+columns (:func:`urident.ident.payload.payload_regressor`, reference-scaled by
+:func:`~urident.ident.payload.payload_reference_scales`), the arm's parameters taken as known; the
+arm joints 1-3 move within ``arm_joint_fraction`` of their velocity and acceleration limits, so the
+motion is the wrist's (the orientation of gravity in the flange frame and the flange's rotation
+are all the payload needs, while large arm motion only adds the arm model's error to the residual).
+A mounted tool (``spec.tool``) is part of the collision model either way.
 """
 
 from __future__ import annotations
@@ -38,6 +46,8 @@ PAPER_Q0 = (0.0, -np.pi / 2, 0.0, 0.0, 0.0, 0.0)  # paper section IV-C: q2,0 = �
 _PENALTY_WEIGHT = 1.0e3
 _KINEMATIC_WEIGHT = 1.0e4
 _FD_STEP = 1e-6
+#: ``for_payload``: joints 1-3 keep within this fraction of their velocity and acceleration limits.
+ARM_JOINT_FRACTION = 0.2
 
 
 @dataclass(frozen=True)
@@ -57,6 +67,8 @@ class ExcitationSettings:
     limit_samples: int = 800
     collision_buffer_m: float = 0.01      # extra distance while optimising on the coarse grid
     margins: Margins = field(default_factory=Margins)
+    for_payload: bool = False             # criterion: cond of the payload columns (module doc)
+    arm_joint_fraction: float = ARM_JOINT_FRACTION   # for_payload: joints 1-3's share of their limits
 
     def __post_init__(self) -> None:
         if self.criterion not in CRITERIA:
@@ -70,6 +82,8 @@ class ExcitationSettings:
         if min(self.candidates, self.starts, self.criterion_samples, self.collision_samples,
                self.limit_samples) < 1 or self.iterations < 0:
             raise ValueError("sample counts, candidates and starts must be positive")
+        if not 0 < self.arm_joint_fraction <= 1:
+            raise ValueError(f"arm_joint_fraction must be in (0, 1], not {self.arm_joint_fraction}")
 
     @property
     def omega(self) -> float:
@@ -87,6 +101,7 @@ class ExcitationResult:
     settings: ExcitationSettings
     limits: Limits
     history: tuple[float, ...]          # best objective after each start
+    payload_cond: float | None = None   # for_payload: cond of the payload columns at the controller rate
 
 
 class ExcitationProblem:
@@ -96,7 +111,12 @@ class ExcitationProblem:
                  base: BaseParameters | None = None):
         s = settings
         self.spec, self.settings = spec, s
-        self.limits = Limits.from_robot(spec, s.margins)
+        self.file_limits = Limits.from_robot(spec, s.margins)   # what the trajectory file states
+        self.limits = self.file_limits
+        if s.for_payload:  # the optimiser's own, tighter bounds on the arm joints (module doc)
+            f = np.where(np.arange(6) < 3, s.arm_joint_fraction, 1.0)
+            self.limits = replace(self.file_limits, qd_max=self.file_limits.qd_max * f,
+                                  qdd_max=self.file_limits.qdd_max * f)
         self.q0 = np.array(s.q0, dtype=float)
         if np.any(self.q0 <= self.limits.q_min) or np.any(self.q0 >= self.limits.q_max):
             raise ValueError("q0 is not strictly inside the position limits (with margin)")
@@ -114,7 +134,15 @@ class ExcitationProblem:
         self.basis_limits = FourierBasis.build(grid(s.limit_samples), w, L)
         self.n_free = 2 * (L - 1)
         self.p_nominal = spec.nominal_params
-        self.scales = reference_scales(spec, self.base)
+        if s.for_payload:
+            from urident.ident.payload import payload_reference_scales, payload_regressor
+
+            self.columns = lambda blocks: payload_regressor(spec, blocks)
+            self.scales = payload_reference_scales(spec)
+        else:
+            self.columns = lambda blocks: blocks[..., self.base.independent]
+            self.scales = reference_scales(spec, self.base)
+        self.n_columns = len(self.scales)
         self.evaluations = 0
 
     # -- building blocks ---------------------------------------------------------------------
@@ -134,11 +162,11 @@ class ExcitationProblem:
         blocks = regressor_blocks(self.spec, (dq + self.q0).reshape(-1, 6), qd.reshape(-1, 6),
                                   qdd.reshape(-1, 6))
         tau = (blocks @ self.p_nominal).reshape(b, -1, 6)
-        theta = blocks[..., self.base.independent].reshape(b, -1, self.base.n_base)
+        theta = self.columns(blocks).reshape(b, -1, self.n_columns)
         # A contiguous transpose keeps the batched product on the fast BLAS path.
         gram = (np.ascontiguousarray(theta.transpose(0, 2, 1)) @ theta) / dq.shape[1]
         log_cond, logdet = gram_criteria(gram, self.scales)
-        crit = log_cond if self.settings.criterion == "cond" else -logdet / self.base.n_base
+        crit = log_cond if self.settings.criterion == "cond" else -logdet / self.n_columns
         excess = np.maximum(np.abs(tau) / self.limits.tau_max - 1.0, 0.0)
         torque_pen = np.sum(excess ** 2, axis=(1, 2)) / tau.shape[1]
         collision_pen = np.zeros(b)
@@ -263,11 +291,17 @@ def optimize_excitation(spec: RobotSpec, settings: ExcitationSettings | None = N
     t = sample_times(settings.duration_s, spec.controller_rate_hz)
     dense = evaluate_criteria(spec, problem.base, *trajectory.evaluate(t))
     coarse = evaluate_criteria(spec, problem.base, *trajectory.evaluate(problem.basis_criterion.t))
+    payload_cond = None
+    if settings.for_payload:
+        from urident.ident.payload import payload_condition
+
+        payload_cond = payload_condition(spec, *trajectory.evaluate(t))
     wall = time.perf_counter() - start_time
     say(f"done in {wall:.1f} s: cond(Θ̄_B) = {dense.cond_theta:.4g} at {spec.controller_rate_hz:g} Hz, "
-        f"min distance {min_distance:.4f} m")
+        + (f"payload columns cond {payload_cond:.4g}, " if payload_cond is not None else "")
+        + f"min distance {min_distance:.4f} m")
     return ExcitationResult(trajectory, dense, coarse, min_distance, wall, problem.evaluations,
-                            settings, problem.limits, tuple(history))
+                            settings, problem.file_limits, tuple(history), payload_cond)
 
 
 def _finalise(problem: ExcitationProblem, spec: RobotSpec, x: np.ndarray) -> tuple[FourierTrajectory, float]:
@@ -316,5 +350,5 @@ def random_feasible_criteria(spec: RobotSpec, settings: ExcitationSettings, n: i
 
 def _show(settings: ExcitationSettings, value: float) -> str:
     if settings.criterion == "cond":
-        return f"cond(Θ̄_B) = {np.exp(value / 2):.4g}"
+        return f"cond({'payload columns' if settings.for_payload else 'Θ̄_B'}) = {np.exp(value / 2):.4g}"
     return f"log det(Λ)/b = {-value:.4g}"

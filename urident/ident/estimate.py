@@ -70,6 +70,19 @@ def joint_weights(w: np.ndarray, y: np.ndarray, x: np.ndarray) -> np.ndarray:
     return 1.0 / std
 
 
+def joint_correlation_inflation(e: np.ndarray) -> np.ndarray:
+    """(6,) the variance factor (1 + ρ_j)/(1 − ρ_j) of each joint's AR(1) residual (row 6k + j):
+    its long-run variance over its variance (:func:`correlation_inflation` takes the largest)."""
+    r = np.asarray(e, dtype=float).reshape(-1, 6)
+    if len(r) < 3:
+        return np.ones(6)
+    r = r - r.mean(axis=0)
+    den = np.sum(r * r, axis=0)
+    rho = np.where(den > 0, np.sum(r[1:] * r[:-1], axis=0) / np.where(den > 0, den, 1.0), 0.0)
+    rho = np.clip(rho, 0.0, 0.999)
+    return (1 + rho) / (1 - rho)
+
+
 def correlation_inflation(e: np.ndarray) -> float:
     """Variance factor (1 + ρ)/(1 − ρ) of an AR(1) residual with lag-1 autocorrelation ρ (per
     joint, the largest): unmodelled effects make the residual smooth, and white-noise σ would then

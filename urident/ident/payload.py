@@ -14,7 +14,7 @@ Estimation (:func:`estimate_payload`): the arm's parameters fixed, the residual
 the ten the data excite is decided by a pivoted QR of the column-normalised, joint-weighted
 regressor (a column within 1e-3 of the span of the others carries nothing of its own) and then by
 each parameter's standard deviation (inflated for the residual's autocorrelation:
-:func:`urident.ident.estimate.correlation_inflation`) against a physical tolerance (:data:`TOLERANCES`); the rest
+:func:`urident.ident.estimate.joint_correlation_inflation`, per joint) against a physical tolerance (:data:`TOLERANCES`); the rest
 are fixed (first moments at 0, inertia at a point mass's) and reported as not identifiable. The
 physically consistent estimate solves the same least squares over all ten with the payload's
 pseudo-inertia ⪰ 0, m in ``mass_range``, a weak prior (the arm's λ) towards the least-squares
@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from urident.errors import ConfigError
-from urident.ident.estimate import correlation_inflation
+from urident.ident.estimate import joint_correlation_inflation
 
 #: Names of the flange-frame ten-vector φ_F (first moments m·c, inertia about the flange origin).
 PAYLOAD_FIELDS = ("m", "mcx", "mcy", "mcz", "Jxx", "Jyy", "Jzz", "Jyz", "Jxz", "Jxy")
@@ -120,6 +120,44 @@ def _to_body(spec, phi: np.ndarray) -> np.ndarray:
 def flange_map(spec) -> np.ndarray:
     """L (10×10): the paper's K_6 parameters = L φ_F (module doc)."""
     return np.column_stack([_to_body(spec, e) for e in np.eye(10)])
+
+
+def payload_regressor(spec, blocks: np.ndarray) -> np.ndarray:
+    """(N, 6, 10) columns of φ_F from the (N, 6, 78) regressor: a payload's joint torque is
+    ``payload_regressor(spec, blocks) @ payload.flange_vector`` (module doc: Y_6 L)."""
+    from urident.ident.features import tool_body_regressor
+
+    return tool_body_regressor(blocks) @ flange_map(spec)
+
+
+_SCALE_CACHE: dict[tuple, np.ndarray] = {}
+REFERENCE_SAMPLES = 2000
+
+
+def payload_reference_scales(spec) -> np.ndarray:
+    """(10,) RMS (per sample, summed over joints) of each payload column over random states, the
+    reference that makes the columns' units (kg, kg·m, kg·m²) comparable in a condition number
+    (as :func:`urident.excitation.criteria.reference_scales` for the arm)."""
+    from urident.model import regressor_blocks
+    from urident.model.base import random_states
+
+    key = (spec.name, str(spec.source), spec.tool_xyz.tobytes(), spec.tool_rotation.tobytes())
+    if key not in _SCALE_CACHE:
+        states = random_states(spec, REFERENCE_SAMPLES, np.random.default_rng(0))
+        a = payload_regressor(spec, regressor_blocks(spec, *states))
+        _SCALE_CACHE[key] = np.sqrt(np.sum(a ** 2, axis=(0, 1)) / REFERENCE_SAMPLES)
+    return _SCALE_CACHE[key].copy()
+
+
+def payload_condition(spec, q, qd, qdd) -> float:
+    """cond of the payload columns (reference-scaled, :func:`payload_reference_scales`) stacked
+    over the samples (N, 6): how well the motion determines all ten payload parameters with the
+    arm fixed (``excite --for-payload`` minimises it)."""
+    from urident.model import regressor_blocks
+
+    a = payload_regressor(spec, regressor_blocks(spec, q, qd, qdd)).reshape(-1, 10)
+    sv = np.linalg.svd(a / payload_reference_scales(spec), compute_uv=False)
+    return float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
 
 
 def from_flange_vector(robot: str, phi: np.ndarray, **kw) -> Payload:
@@ -215,16 +253,23 @@ def _structural(a: np.ndarray) -> np.ndarray:
 
 
 def _ls(a: np.ndarray, y: np.ndarray, free: np.ndarray, fixed: np.ndarray):
-    """Least squares over the ``free`` columns with the others at ``fixed``: (φ, σ)."""
+    """Least squares over the ``free`` columns with the others at ``fixed``: (φ, σ). σ from the
+    sandwich with each joint's residual at its long-run variance (variance times its own AR(1)
+    factor, :func:`joint_correlation_inflation`): the joints' residuals differ in smoothness by
+    10x, and one factor for all would be the smoothest joint's."""
     rhs = y - a[:, ~free] @ fixed[~free]
     af = a[:, free]
     scale = np.linalg.norm(af, axis=0)
-    x, *_ = np.linalg.lstsq(af / scale, rhs, rcond=None)
+    an = af / scale
+    x, *_ = np.linalg.lstsq(an, rhs, rcond=None)
     x /= scale
     e = af @ x - rhs
     dof = max(len(y) - af.shape[1], 1)
-    cov = (np.linalg.pinv((af / scale).T @ (af / scale)) / np.outer(scale, scale) * (e @ e / dof)
-           * correlation_inflation(e))
+    ej = e.reshape(-1, 6)
+    long_run = np.sum(ej ** 2, axis=0) / (dof / 6) * joint_correlation_inflation(e)
+    bread = np.linalg.pinv(an.T @ an)
+    meat = np.einsum("kjp,j,kjq->pq", an.reshape(-1, 6, an.shape[1]), long_run, an.reshape(-1, 6, an.shape[1]))
+    cov = bread @ meat @ bread / np.outer(scale, scale)
     phi = fixed.copy()
     phi[free] = x
     sigma = np.full(10, np.nan)
@@ -278,38 +323,50 @@ def _consistent(a: np.ndarray, y: np.ndarray, prior: np.ndarray, free: np.ndarra
     return np.asarray(phi.value, dtype=float)
 
 
-def estimate_payload(params, spec, data, mass_range=None, regularisation: float | None = None
-                     ) -> PayloadEstimate:
-    """The payload from prepared data ``data`` (:class:`urident.ident.Prepared`, torques from the
-    drive gains chosen) with the arm's ``params`` (:class:`IdentifiedModel`) fixed (module doc)."""
-    from urident.ident.estimate import joint_weights, row_weights
-    from urident.ident.estimate_consistent import DEFAULT_REGULARISATION
-    from urident.ident.features import tool_body_regressor
-    from urident.ident.identify import predict_prepared
-    from urident.ident.metrics import error_metrics
-    from urident.model import regressor_blocks
+#: Fits of the payload, each with the side effects of the previous one's torque as columns.
+INDUCED_PASSES = 3
 
-    if mass_range is not None:
-        low, high = mass_range
-        if not (0 < low < high):
-            raise PayloadError(f"mass range must be 0 < low < high, not {low:g}..{high:g} kg")
-    check_wrist_motion(data.q)
-    residual = data.tau - predict_prepared(params, spec, data)
-    y6 = tool_body_regressor(regressor_blocks(spec, data.q, data.qd, data.qdd))
-    a = (y6 @ flange_map(spec)).reshape(-1, 10)
-    y = residual.reshape(-1)
+
+def _induced(data, link: np.ndarray, tau_p: np.ndarray) -> np.ndarray:
+    """(6N, 12) columns of what a payload's torque ``tau_p`` (N, 6) changes besides itself, one
+    free coefficient per joint: the load-dependent friction it adds, z_j·(|τ_L + τ_p| − |τ_L|)
+    (τ_L: the arm's nominal link torque, z the Coulomb state; the arm model's own load-friction
+    term sees τ_L only), and the current delay's share, dτ_p/dt (the measured current lags)."""
+    from urident.model.regressor import DEFAULT_FRICTION_EPS
+
     n = len(data)
-    if 6 * n <= 20:
-        raise PayloadError(f"{n} samples are too few to identify a payload")
+    joints = np.arange(6)
+    z = np.tanh(data.qd / DEFAULT_FRICTION_EPS)
+    rate = np.zeros_like(tau_p)
+    for seg in np.unique(data.segment):
+        k = np.flatnonzero(data.segment == seg)
+        if len(k) > 2:
+            rate[k] = np.gradient(tau_p[k], data.t[k], axis=0)
+    out = np.zeros((n, 6, 12))
+    out[:, joints, joints] = z * (np.abs(link + tau_p) - np.abs(link))
+    out[:, joints, 6 + joints] = rate
+    return out.reshape(-1, 12)
+
+
+def _select(a_fit: np.ndarray, y_fit: np.ndarray, nuisance: np.ndarray | None, n_rows: int):
+    """Per-joint weights from a first fit, then least squares with the nuisance columns projected
+    out, dropping the worst-determined parameter until every one left is within its tolerance:
+    (φ, σ, free, weights, weighted and projected a, y)."""
+    from urident.ident.estimate import joint_weights, row_weights
+
     # per-joint weights from a first fit: joints differ in noise and model error by 10x
-    free = _structural(a)
+    a0, y0 = (a_fit, y_fit) if nuisance is None else _project_out(nuisance, a_fit, y_fit)
+    free = _structural(a0)
     if not free[0]:
         raise PayloadError("the logs do not excite the payload mass (no gravity or acceleration "
                            "torque of a tool mass reaches the joints)")
-    phi, _ = _ls(a, y, free, np.zeros(10))
-    weights = joint_weights(a, y, phi)
-    rw = row_weights(weights, n)
-    aw, yw = a * rw[:, None], y * rw
+    phi, _ = _ls(a0, y0, free, np.zeros(10))
+    # weights 1/(long-run std) per joint: a smooth residual carries less information per sample
+    weights = joint_weights(a0, y0, phi) / np.sqrt(joint_correlation_inflation(a0 @ phi - y0))
+    rw = row_weights(weights, n_rows)
+    aw, yw = a_fit * rw[:, None], y_fit * rw
+    if nuisance is not None:
+        aw, yw = _project_out(nuisance * rw[:, None], aw, yw)
     free = _structural(aw)
     phi = np.zeros(10)
     for _ in range(20):  # drop the worst-determined parameter until all are within tolerance
@@ -324,18 +381,90 @@ def estimate_payload(params, spec, data, mass_range=None, regularisation: float 
             raise PayloadError(f"the logs do not determine the payload mass (σ {sigma[0]:.3g} kg "
                                f"for {phi[0]:.3g} kg)")
         free[worst] = False
+    return phi, sigma, free, weights, aw, yw
+
+
+def _nuisance(spec, data, blocks: np.ndarray) -> np.ndarray:
+    """(N, 6, 28) columns of what the arm model gets wrong on a motion whether or not the tool is
+    mounted: its own last body (ten parameters, the payload's columns: a 'phantom payload') and
+    each joint's viscous, Coulomb and constant torque."""
+    from urident.model.regressor import DEFAULT_FRICTION_EPS
+
+    n = len(data)
+    joints = np.arange(6)
+    friction = np.zeros((n, 6, 18))
+    friction[:, joints, joints] = data.qd
+    friction[:, joints, 6 + joints] = np.tanh(data.qd / DEFAULT_FRICTION_EPS)
+    friction[:, joints, 12 + joints] = 1.0
+    return np.concatenate([payload_regressor(spec, blocks), friction], axis=2)
+
+
+def _project_out(n: np.ndarray, *arrays: np.ndarray) -> list[np.ndarray]:
+    """Each array minus its least-squares fit on the columns of ``n`` (Frisch-Waugh: least squares
+    on the results gives the payload of the joint fit with the nuisance columns free)."""
+    scale = np.linalg.norm(n, axis=0)
+    keep = scale > 0
+    u, sv, _ = np.linalg.svd(n[:, keep] / scale[keep], full_matrices=False)
+    u = u[:, sv > 1e-10 * sv[0]]
+    return [x - u @ (u.T @ x) for x in arrays]
+
+
+def estimate_payload(params, spec, data, mass_range=None, regularisation: float | None = None,
+                     unloaded=None) -> PayloadEstimate:
+    """The payload from prepared data ``data`` (:class:`urident.ident.Prepared`, torques from the
+    drive gains chosen) with the arm's ``params`` (:class:`IdentifiedModel`) fixed (module doc).
+
+    ``unloaded``: prepared runs of the same motion without the tool (a tare). The arm model's
+    own errors on that motion (its last body's parameters, which add to the payload's exactly,
+    and each joint's friction and offset, :func:`_nuisance`) are then fit jointly on both and
+    removed: what is left in the loaded run is the tool's alone."""
+    from urident.ident.design import nominal_link_torque
+    from urident.ident.estimate_consistent import DEFAULT_REGULARISATION
+    from urident.ident.identify import predict_prepared
+    from urident.ident.metrics import error_metrics
+    from urident.model import regressor_blocks
+
+    if mass_range is not None:
+        low, high = mass_range
+        if not (0 < low < high):
+            raise PayloadError(f"mass range must be 0 < low < high, not {low:g}..{high:g} kg")
+    check_wrist_motion(data.q)
+    residual = data.tau - predict_prepared(params, spec, data)
+    blocks = regressor_blocks(spec, data.q, data.qd, data.qdd)
+    a = payload_regressor(spec, blocks).reshape(-1, 10)
+    y = residual.reshape(-1)
+    n = len(data)
+    if 6 * n <= 20:
+        raise PayloadError(f"{n} samples are too few to identify a payload")
+    a_fit, y_fit, nuisance, n_rows = a, y, None, n
+    if unloaded is not None:
+        check_wrist_motion(unloaded.q, "unloaded logs")
+        blocks_u = regressor_blocks(spec, unloaded.q, unloaded.qd, unloaded.qdd)
+        y_u = (unloaded.tau - predict_prepared(params, spec, unloaded)).reshape(-1)
+        a_fit = np.vstack([a, np.zeros((len(y_u), 10))])
+        y_fit = np.concatenate([y, y_u])
+        nuisance = np.vstack([_nuisance(spec, data, blocks).reshape(-1, 28),
+                              _nuisance(spec, unloaded, blocks_u).reshape(-1, 28)])
+        n_rows = n + len(unloaded)
+    link = nominal_link_torque(spec, blocks)
+    phi = None
+    for _ in range(INDUCED_PASSES):   # the payload's side effects follow its estimate
+        extra = None if phi is None else _induced(data, link, (a @ phi).reshape(-1, 6))
+        if extra is not None and unloaded is not None:
+            extra = np.vstack([extra, np.zeros((6 * len(unloaded), extra.shape[1]))])
+        parts = [x for x in (nuisance, extra) if x is not None]
+        phi, sigma, free, weights, aw, yw = _select(a_fit, y_fit, np.hstack(parts) if parts else None, n_rows)
     ew = aw @ phi - yw
     noise_var = max(float(ew @ ew) / max(len(yw) - int(free.sum()), 1), 1e-300)
     identifiable = tuple(name for name, f in zip(PAYLOAD_FIELDS, free) if f)
+    info = {"weights": [float(w) for w in weights], "unloaded_samples": 0 if unloaded is None else len(unloaded)}
     ols = from_flange_vector(spec.name, phi, sigma=_sigma_dict(phi, sigma),
-                             identifiable=identifiable, method="ols",
-                             info={"weights": [float(w) for w in weights]})
+                             identifiable=identifiable, method="ols", info=info)
     reg = DEFAULT_REGULARISATION if regularisation is None else regularisation
     phi_c = _consistent(aw, yw, phi, free, mass_range, noise_var, reg)
     phi_c[4:10] += _psd_repair(phi_c)
     cons = from_flange_vector(spec.name, phi_c, sigma=_sigma_dict(phi_c, sigma),
-                              identifiable=identifiable, method="consistent",
-                              info={"weights": [float(w) for w in weights]})
+                              identifiable=identifiable, method="consistent", info=info)
     e_arm, rms_arm = error_metrics(residual)
     e_pl, rms_pl = error_metrics(residual - (a @ phi_c).reshape(-1, 6))
     return PayloadEstimate(ols, cons, rms_arm, rms_pl, e_arm, e_pl, n)

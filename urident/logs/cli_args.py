@@ -22,6 +22,7 @@ from .foreign import PRESETS, parse_column_map
 from .gaps import describe_gaps, recording_gaps
 from .reader import describe_dropped, load_log
 from .rosbag import is_bag
+from .sidecar import describe_declared_payload
 from .recording import Recording
 
 
@@ -173,6 +174,9 @@ def load_log_from_args(
     line = describe_dropped(recording)
     if line:
         print(f"urident: warning: {line}", file=report or sys.stderr)
+    declared = describe_declared_payload(recording.metadata)
+    if declared:  # every report that loads the log says what the controller was told
+        print(f"{path}: {declared}", file=report or sys.stderr)
     check_log_usable(recording, allow_aborted=getattr(args, "log_allow_aborted", False),
                      allow_gaps=getattr(args, "log_allow_gaps", False))
     for note in recording.metadata.get("notes") or ():  # what a bag loader decided (time source, stops)

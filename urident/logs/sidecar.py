@@ -118,3 +118,39 @@ def _check_values(path: Path, data: dict[str, Any]) -> None:
     robot = data.get("robot")
     if robot is not None and not robot.strip():
         raise LogFormatError(f"{path}: robot: is empty")
+
+
+#: ``extra`` key of the payload declared to the controller during the run (``urident run`` reads
+#: the controller's RTDE ``payload``, ``payload_cog``, ``payload_inertia`` when the version has them).
+DECLARED_PAYLOAD_KEY = "declared_payload"
+
+
+def declared_payload(metadata: dict[str, Any]) -> dict[str, Any] | None:
+    """``{mass_kg, cog_m (3), inertia_kg_m2 (6: Ixx, Iyy, Izz, Ixy, Ixz, Iyz) or None}`` of a log's
+    sidecar metadata, or None when it records none (or nothing usable)."""
+    extra = metadata.get("extra") if isinstance(metadata, dict) else None
+    value = extra.get(DECLARED_PAYLOAD_KEY) if isinstance(extra, dict) else None
+    if not isinstance(value, dict):
+        return None
+    try:
+        mass = float(value["mass_kg"])
+        cog = [float(v) for v in value.get("cog_m") or [0.0, 0.0, 0.0]]
+        inertia = value.get("inertia_kg_m2")
+        inertia = None if inertia is None else [float(v) for v in inertia]
+    except (KeyError, TypeError, ValueError):
+        return None
+    if not _finite(mass) or len(cog) != 3 or (inertia is not None and len(inertia) != 6):
+        return None
+    return {"mass_kg": mass, "cog_m": cog, "inertia_kg_m2": inertia}
+
+
+def describe_declared_payload(metadata: dict[str, Any]) -> str | None:
+    """One line for reports: the payload the controller was told during the run, or None."""
+    p = declared_payload(metadata)
+    if p is None:
+        return None
+    cog = ", ".join(f"{1000 * v:.1f}" for v in p["cog_m"])
+    inertia = ("" if p["inertia_kg_m2"] is None
+               else ", inertia [" + ", ".join(f"{v:.5g}" for v in p["inertia_kg_m2"]) + "] kg·m²")
+    return (f"payload declared to the controller during the run (sidecar): {p['mass_kg']:.4g} kg, "
+            f"centre of mass [{cog}] mm{inertia}")

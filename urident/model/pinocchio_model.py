@@ -53,6 +53,7 @@ def build_collision_model(spec: RobotSpec, model: pin.Model | None = None,
     groups: dict[str, list[int]] = {"base": [add(f"base_{k}", 0, c) for k, c in enumerate(spec.base_collision)]}
     for i, joint in enumerate(spec.joints):
         groups[joint.name] = [add(f"{joint.name}_{k}", i + 1, c) for k, c in enumerate(joint.collision)]
+    groups[TOOL_LINK] = [add(f"{TOOL_LINK}_{k}", len(spec.joints), c) for k, c in enumerate(spec.tool_collision)]
     for first, second in collision_link_pairs(spec):
         for a in groups[first]:
             for b in groups[second]:
@@ -67,21 +68,28 @@ def build_collision_model(spec: RobotSpec, model: pin.Model | None = None,
     return geom
 
 
+#: Name of a mounted tool's capsule group (:attr:`RobotSpec.tool`), rigid on the last link.
+TOOL_LINK = "tool"
+
+
 def collision_link_pairs(spec: RobotSpec) -> list[tuple[str, str]]:
     """Link pairs checked for self-collision: not adjacent in the chain, not allowed contacts.
-    The base counts as link 0."""
+    The base counts as link 0. A mounted tool is checked against every link but the one it is
+    bolted to (the robot file's allowed contacts are about the arm's own capsules)."""
     names = ["base", *spec.joint_names]
     pairs = []
     for i in range(len(names)):
         for j in range(i + 2, len(names)):
             if frozenset((names[i], names[j])) not in spec.allowed_contacts:
                 pairs.append((names[i], names[j]))
+    if spec.tool is not None:
+        pairs += [(name, TOOL_LINK) for name in names[:-1]]
     return pairs
 
 
 def floor_checked_links(spec: RobotSpec) -> list[str]:
     """Links checked against the floor/mount plane: all but the first (which cannot reach it)."""
-    return list(spec.joint_names[1:])
+    return list(spec.joint_names[1:]) + ([TOOL_LINK] if spec.tool is not None else [])
 
 
 def _rotation_z_to(direction: np.ndarray) -> np.ndarray:

@@ -46,6 +46,25 @@ class Capsule:
 
 
 @dataclass(frozen=True)
+class ToolCapsule:
+    """A tool's bounding capsule on the flange: its axis runs from the flange centre ``length_m``
+    out along the flange z axis, swept by a sphere of ``radius_m`` (so it encloses a cylinder of
+    that radius and length standing on the flange) [m]."""
+
+    radius_m: float
+    length_m: float
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.radius_m) and self.radius_m > 0):
+            raise ValueError(f"tool capsule radius must be positive, not {self.radius_m:g} m")
+        if not (np.isfinite(self.length_m) and self.length_m >= 0):
+            raise ValueError(f"tool capsule length must not be negative, not {self.length_m:g} m")
+
+    def as_dict(self) -> dict[str, float]:
+        return {"radius_m": float(self.radius_m), "length_m": float(self.length_m)}
+
+
+@dataclass(frozen=True)
 class Joint:
     """One revolute joint and the link (body) it moves."""
 
@@ -91,6 +110,7 @@ class RobotSpec:
     payload_kg: float | None = None     # datasheet payload class [kg]
     nominal: frozenset[str] = frozenset()  # NOMINAL_KEYS whose values are approximations
     arrays: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
+    tool: ToolCapsule | None = None     # a mounted tool's capsule, checked as the link "tool"
 
     def __post_init__(self) -> None:
         def stack(attr: str) -> np.ndarray:
@@ -114,6 +134,21 @@ class RobotSpec:
     gear_ratios = property(lambda self: self.arrays["gear_ratio"])
     torque_constants = property(lambda self: self.arrays["torque_constant"])
     drive_gains = property(lambda self: self.arrays["drive_gains"])  # i_G * k [N m / A]
+
+    def with_tool(self, tool: ToolCapsule | None) -> "RobotSpec":
+        """This robot with ``tool`` mounted on the flange (collision checks only)."""
+        from dataclasses import replace
+
+        return self if tool == self.tool else replace(self, arrays={}, tool=tool)
+
+    @property
+    def tool_collision(self) -> tuple[Capsule, ...]:
+        """The tool's capsule in the last joint's frame K_6 (empty without a tool)."""
+        if self.tool is None:
+            return ()
+        a = np.asarray(self.tool_xyz, dtype=float)
+        b = a + np.asarray(self.tool_rotation, dtype=float) @ np.array([0.0, 0.0, self.tool.length_m])
+        return (Capsule(a, b, float(self.tool.radius_m)),)
 
     @property
     def joint_names(self) -> tuple[str, ...]:

@@ -36,6 +36,20 @@ RECEIVE_VARIABLES = [
 ]
 
 
+# The payload the controller was told (UR's RTDE guide: payload and payload_cog from 3.11 / 5.5,
+# payload_inertia from 3.15 / 5.11); read once per run for the sidecar, not logged per sample.
+PAYLOAD_FIELDS_SINCE = {"payload": {3: (3, 11), 5: (5, 5)}, "payload_cog": {3: (3, 11), 5: (5, 5)},
+                        "payload_inertia": {3: (3, 15), 5: (5, 11)}}
+
+
+def payload_field_names(version: tuple[int, ...]) -> list[str]:
+    """The payload outputs a controller of ``version`` publishes (PolyScope X: all)."""
+    if not version:
+        return []
+    return [name for name, since in PAYLOAD_FIELDS_SINCE.items()
+            if version[0] >= 10 or (version[0] in since and tuple(version) >= since[version[0]])]
+
+
 # The joint torque output (UR's RTDE guide: actual_current_as_torque, PolyScope 5.23 / 10.10 on).
 TORQUE_FIELD = "actual_current_as_torque"
 TORQUE_FIELD_SINCE = {5: (5, 23), 10: (10, 10)}
@@ -88,6 +102,7 @@ class RobotLink:
         self.dashboard = None
         self._stopped = False
         self._lost = False
+        self._payload_fields: list[str] = []
 
     # ------------------------------------------------------------------ connection
     def connect_receive(self) -> None:
@@ -100,8 +115,11 @@ class RobotLink:
         except RuntimeError as exc:
             raise ControllerUnreachable(f"no controller at {self.host}: cannot reach its dashboard "
                                         f"server on port 29999 ({exc}); nothing moved") from None
+        version = parse_polyscope_version(self._dashboard_call("polyscopeVersion"))
+        self._payload_fields = payload_field_names(version)
         try:
-            self.receive = rtde_receive.RTDEReceiveInterface(self.host, -1.0, RECEIVE_VARIABLES)
+            self.receive = rtde_receive.RTDEReceiveInterface(self.host, -1.0,
+                                                             RECEIVE_VARIABLES + self._payload_fields)
         except RuntimeError as exc:
             raise ControllerUnreachable(f"no controller at {self.host}: cannot open RTDE on port "
                                         f"30004 ({exc}); nothing moved") from None
@@ -158,6 +176,19 @@ class RobotLink:
             "safety_status_bits": r.getSafetyStatusBits(),
             "runtime_state": r.getRuntimeState(),
         }
+
+    def declared_payload(self) -> dict[str, object] | None:
+        """The payload the controller was told (``set_target_payload``, the installation), as
+        :func:`urident.logs.sidecar.declared_payload` reads it, or None if it publishes none."""
+        r = self.receive
+        try:
+            if "payload" not in self._payload_fields or r is None or not r.isConnected():
+                return None
+            return {"mass_kg": float(r.getPayload()), "cog_m": [float(v) for v in r.getPayloadCog()],
+                    "inertia_kg_m2": ([float(v) for v in r.getPayloadInertia()]
+                                      if "payload_inertia" in self._payload_fields else None)}
+        except RuntimeError:  # a lost link: the log is still written, without it
+            return None
 
     def monitor_state(self) -> tuple[float, list, int, int]:
         """(timestamp, actual_q, safety_status_bits, runtime_state): what the monitors need."""

@@ -85,6 +85,7 @@ def plan_motion(spec: RobotSpec, trajectory_path: Path, rate_hz: float, repeat: 
     if traj_file.robot != spec.name:
         raise ConfigError(f"{trajectory_path}: trajectory is for robot '{traj_file.robot}', "
                           f"not '{spec.name}'")
+    spec = traj_file.checked_spec(spec)  # a trajectory designed for a tool keeps it in every check
     report = check_trajectory(spec, traj_file.trajectory, rate_hz, traj_file.limits)
     report.raise_if_unsafe(f"{trajectory_path} (checked at {rate_hz:g} Hz)")
     if repeat < 1:
@@ -223,7 +224,7 @@ def _check_and_run(request: RunRequest, spec: RobotSpec, config: ExperimentConfi
     motion = plan_motion(spec, request.trajectory, info.rate_hz, request.repeat, config.rest_s)
     approach = plan_approach(spec, link.actual_q(), motion.q_cmd[0],
                              config.approach.max_distance_rad,
-                             _clearance_function(spec, motion.trajectory_file.limits))
+                             _clearance_function(motion.spec, motion.trajectory_file.limits))
     result.approach = approach
     say(f"{spec.description} at {request.host}: controller {info.version_text}, "
         f"{info.rate_hz:g} Hz; trajectory {request.trajectory} passed every check at "
@@ -437,7 +438,7 @@ def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion:
                  "periods_over_tolerance": over,
                  "max_tracking_error_rad": monitor.max_tracking_error,
                  "servo_timestamps_s": servo_timestamps, "stop_problems": problems,
-                 "late_cycles": monitor.late.late}
+                 "late_cycles": monitor.late.late, "declared_payload": link.declared_payload()}
         stats = recorder.stop(status, abort_reason, extra)
         if live is not None:
             live.close(abort_reason)
