@@ -201,3 +201,43 @@ def test_downloaded_like_ur5e_mjcf_against_a_realistic_run(tmp_path):
     assert big.all()
     assert np.all(after[big] <= 0.5 * before[big])
     np.testing.assert_allclose(100 * (1 - after / before), 100 * (1 - predicted / before), atol=3.0)
+
+
+def test_link_inertia_is_told_from_armature_only_where_the_chain_separates_them(ur5_models, tmp_path):
+    """Joint 1's axis, and joint 2's (perpendicular to joint 1's), see their link's inertia about the
+    axis only as I·q̈ on the joint itself, exactly as armature: those fields are folded into the
+    armature; every other link's inertia field is a candidate of its own. The written correction
+    changes the simulator's torque by exactly the candidate's columns."""
+    from urident.gap.data import build_set
+    from urident.gap.sim_baseline import INERTIA_FIELDS, link_inertia_candidates, link_inertia_columns, make_sim_context
+    from urident.logs import load_log
+    from urident.model import regressor_blocks
+    from urident.model.parameters import body_slice, inertia_tensor
+    from urident.sim.correct import write_corrected
+    from urident.sim.models import load_sim_model
+
+    spec = ur5_models["spec"]
+    sim = load_sim_model(ur5_models["xml"], spec)
+    ctx = make_sim_context(sim, build_set([load_log(VALID, robot="ur5")], spec))
+    about_axis = {"x": "A", "y": "B", "z": "C"}
+    kept, aliased = link_inertia_columns(spec, ctx, 0)
+    assert kept == () and aliased == (about_axis[spec.joints[0].axis],)
+    kept, aliased = link_inertia_columns(spec, ctx, 1)
+    assert aliased == (about_axis[spec.joints[1].axis],) and aliased[0] not in kept and len(kept) >= 3
+    for j in range(2, 6):
+        assert link_inertia_columns(spec, ctx, j)[1] == ()
+    assert sorted(c[0].joint for c in link_inertia_candidates(spec, ctx)) == [1, 2, 3, 4, 5]
+    # an inertia change of link 3 written into the MJCF moves MuJoCo's torque by its columns
+    p10 = np.zeros(10)
+    p10[4:10] = [0.004, 0.01, 0.006, 0.001, -0.002, 0.0015]
+    changes = {k: np.zeros(6) for k in ("armature", "damping", "frictionloss", "mass")}
+    changes.update(first_moment=np.zeros((6, 3)), inertia=np.zeros((6, 3, 3)), payload=None)
+    changes["inertia"][2] = inertia_tensor(p10)
+    new = load_sim_model(write_corrected(sim, spec, changes, tmp_path / "inertia.xml"), spec)
+    rng = np.random.default_rng(5)
+    q, qd, qdd = rng.uniform(-2, 2, (20, 6)), rng.normal(0, 1, (20, 6)), rng.normal(0, 3, (20, 6))
+    delta = np.zeros(78)
+    delta[body_slice(2)] = p10
+    expected = regressor_blocks(spec, q, qd, qdd) @ delta
+    np.testing.assert_allclose(new.rigid(q, qd, qdd) - sim.rigid(q, qd, qdd), expected, atol=1e-6)
+    assert INERTIA_FIELDS == ("A", "B", "C", "D", "E", "F")

@@ -5,7 +5,8 @@ and Coulomb friction become the model's value plus the correction (MJCF: ``frict
 two pieces of :mod:`urident.sim.mjcf`, joint and fixed tendon ``<joint>_friction``, so MuJoCo's
 force follows tanh(q̇/ε); URDF: ``<dynamics damping friction>``). A link's mass and first-moment
 correction (about the robot's joint frame K_i, turned into the body's frame) moves its inertial's
-mass and centre of mass and keeps its inertia about K_i's origin, as the correction's columns do. A payload is a
+mass and centre of mass and keeps its inertia about K_i's origin, as the correction's columns do; a link
+inertia correction (about K_i's origin, K_i's axes) is added to that inertia. A payload is a
 point mass body ``payload`` at the tool point (MJCF). URDF: link and payload corrections are not
 written (listed by the caller).
 """
@@ -32,6 +33,11 @@ def _fmt(values) -> str:
 def _shift(x: np.ndarray) -> np.ndarray:
     """Parallel-axis term |x|²·1 − x·xᵀ (per kg)."""
     return x @ x * np.eye(3) - np.outer(x, x)
+
+
+def _inertia(changes: dict, i: int) -> np.ndarray:
+    """Link i's inertia change about K_i (K_i's axes); none when ``changes`` has no ``inertia``."""
+    return np.asarray(changes["inertia"][i], float) if "inertia" in changes else np.zeros((3, 3))
 
 
 def _mjcf_text(sim, spec, changes: dict, notes) -> str:
@@ -76,8 +82,8 @@ def _mjcf_text(sim, spec, changes: dict, notes) -> str:
             fixed = ET.SubElement(tendons, "fixed", name=f"{name}_friction", frictionloss=f"{fc * s2:.12g}",
                                   solreffriction=ref, solimpfriction=imp)
             ET.SubElement(fixed, "joint", joint=name, coef="1")
-        dm, dh = changes["mass"][i], changes["first_moment"][i]
-        if dm != 0 or np.any(dh != 0):
+        dm, dh, di = changes["mass"][i], changes["first_moment"][i], _inertia(changes, i)
+        if dm != 0 or np.any(dh != 0) or np.any(di != 0):
             b = int(model.jnt_bodyid[i])
             body = parents[joint]
             m = float(model.body_mass[b])
@@ -92,7 +98,7 @@ def _mjcf_text(sim, spec, changes: dict, notes) -> str:
             # the correction keeps the inertia about K_i's origin (its columns are m and m·ρ only)
             ri = np.array(data.ximat[b]).reshape(3, 3)
             i_com = ri @ np.diag(model.body_inertia[b]) @ ri.T
-            about_k = i_com + m * _shift(com - pos[0, i])
+            about_k = i_com + m * _shift(com - pos[0, i]) + rot[0, i] @ di @ rot[0, i].T
             i_new = about_k - mass * _shift(new_com - pos[0, i])
             if np.linalg.eigvalsh(i_new).min() < 0:
                 raise ConfigError(f"{sim.path}: the mass/CoM correction of body {body.get('name')!r} is not a "
@@ -153,14 +159,15 @@ def unrealisable_links(sim, spec, changes: dict) -> list[int]:
     rot, _ = frame_poses(spec, np.zeros((1, 6)))
     out = []
     for i in range(len(sim.joint_names)):
-        dm, dh = changes["mass"][i], changes["first_moment"][i]
-        if dm == 0 and not np.any(dh != 0):
+        dm, dh, di = changes["mass"][i], changes["first_moment"][i], _inertia(changes, i)
+        if dm == 0 and not np.any(dh != 0) and not np.any(di != 0):
             continue
         b = int(model.jnt_bodyid[i])
         m = float(model.body_mass[b])
         com = np.array(data.xipos[b])
         ri = np.array(data.ximat[b]).reshape(3, 3)
-        about_k = ri @ np.diag(model.body_inertia[b]) @ ri.T + m * _shift(com - pos[0, i])
+        about_k = (ri @ np.diag(model.body_inertia[b]) @ ri.T + m * _shift(com - pos[0, i])
+                   + rot[0, i] @ di @ rot[0, i].T)
         mass = m + dm
         if not mass > 0:
             out.append(i)
