@@ -1,13 +1,13 @@
 """Benchmark: the gap of a "downloaded-model-like" MJCF (nominal masses, solid-cylinder inertias,
 no armature, damping or frictionloss) against runs of the simulated controller with the
 ``realistic`` effects (offline, ``urident simulate``). Prints the findings with their final values
-beside the simulated truth (the robot file's drive values; for an armature that also holds a link
-inertia the chain cannot tell from it, gap's ``inseparable_link_inertia``, the truth the data
-determine is the rotor inertia plus that field's error in the model, printed beside), the validation RMS per joint before
-and after the written model as MuJoCo measures it, and the report's predicted shrink; the last
-line is one JSON object.
+beside the simulated truth (the robot file's drive values; an armature that also holds a link
+inertia the chain cannot tell from it, gap's ``inseparable_link_inertia``, is also compared to the
+rotor inertia plus that field's error in the model), the validation RMS per joint before and after
+the written model as MuJoCo measures it, and the report's predicted shrink; the last line is one
+JSON object.
 
-    python benchmarks/sim_gap.py [--robot ur5e] [--max-effects 12]
+    python benchmarks/sim_gap.py [--robot ur5e] [--max-effects 18]
 """
 
 from __future__ import annotations
