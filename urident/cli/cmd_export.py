@@ -15,8 +15,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "export", help="write identified parameters as a MuJoCo (MJCF) or URDF model",
         description="Write the physically consistent estimate of PARAMS.yaml as a simulator model: link "
                     "inertials, rotor inertia as joint armature (MJCF only), viscous friction as damping, "
-                    "Coulomb friction as frictionloss (MJCF) or <dynamics friction> (URDF), joint limits "
-                    "and capsule collision geometry. The identified terms the format cannot express are "
+                    "Coulomb friction as frictionloss (MJCF) or <dynamics friction> (URDF), joint limits, "
+                    "capsule collision geometry and, with --payload, the payload as a body on the flange. The identified terms the format cannot express are "
                     "listed in the file's header and here, with their share of the torque of the "
                     "--valid logs.")
     p.add_argument("params", metavar="PARAMS.yaml", nargs="?", default=None,
