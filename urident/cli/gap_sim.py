@@ -76,18 +76,14 @@ def run_sim(args: argparse.Namespace, load_all, json_default) -> int:
     doc["baseline"]["sim_model"] = {"path": str(args.sim), "format": fmt}
     r0 = result.valid.residual
     chosen, fit = expressible_fit(result)
-    written = [c for c in chosen if fmt == "mjcf" or c.effect in ("damping", "frictionloss")]
-    if len(written) != len(chosen):
-        print("  URDF: link mass/CoM and payload corrections are not written by --write-sim (only <dynamics>)")
-    if fmt == "mjcf":
-        from urident.sim.correct import unrealisable_links
+    from urident.sim.correct import unrealisable_links
 
-        bad = set(unrealisable_links(sim, spec, corrections(result)))
-        for c in written:
-            if c.effect in ("rigid_body", "link_inertia") and c.joint in bad:
-                print(f"  {c.name}: not a real mass distribution (the inertia about the new centre of mass "
-                      "would not be positive): not written")
-        written = [c for c in written if not (c.effect in ("rigid_body", "link_inertia") and c.joint in bad)]
+    bad = set(unrealisable_links(sim, spec, corrections(result)))
+    for c in chosen:
+        if c.effect in ("rigid_body", "link_inertia") and c.joint in bad:
+            print(f"  {c.name}: not a real mass distribution (the inertia about the new centre of mass "
+                  "would not be positive): not written")
+    written = [c for c in chosen if not (c.effect in ("rigid_body", "link_inertia") and c.joint in bad)]
     if len(written) != len(chosen):
         fit = result.correction(written)
     predicted = r0 - fit.change(result.valid) if written else r0
