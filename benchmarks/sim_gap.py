@@ -1,11 +1,13 @@
 """Benchmark: the gap of a "downloaded-model-like" MJCF (nominal masses, solid-cylinder inertias,
 no armature, damping or frictionloss) against runs of the simulated controller with the
 ``realistic`` effects (offline, ``urident simulate``). Prints the findings with their final values
-beside the simulated truth (the robot file's drive values), the validation RMS per joint before
-and after the written model as MuJoCo measures it, and the report's predicted shrink; the last
-line is one JSON object.
+beside the simulated truth (the robot file's drive values; an armature that also holds a link
+inertia the chain cannot tell from it, gap's ``inseparable_link_inertia``, is also compared to the
+rotor inertia plus that field's error in the model), the validation RMS per joint before and after
+the written model as MuJoCo measures it, and the report's predicted shrink; the last line is one
+JSON object.
 
-    python benchmarks/sim_gap.py [--robot ur5e] [--max-effects 12]
+    python benchmarks/sim_gap.py [--robot ur5e] [--max-effects 18]
 """
 
 from __future__ import annotations
@@ -24,14 +26,17 @@ ROOT = Path(__file__).resolve().parents[1]
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--robot", default="ur5e")
-    ap.add_argument("--max-effects", type=int, default=12)
+    ap.add_argument("--max-effects", type=int, default=18)
     args = ap.parse_args()
 
     from urident.cli.main import main as urident
     from urident.model import load_robot
+    from urident.gap.sim_baseline import INERTIA_FIELDS
+    from urident.model.parameters import body_slice
     from urident.sim.mjcf import downloaded_like_standard, write_mjcf
 
     spec = load_robot(args.robot)
+    model_error = spec.nominal_params - downloaded_like_standard(spec)
     truth = {"armature": spec.arrays["rotor_inertia"], "damping": spec.arrays["viscous_friction"],
              "frictionloss": spec.arrays["coulomb_friction"]}
     keys = {"armature": "armature_kg_m2", "damping": "damping_nm_s_per_rad", "frictionloss": "frictionloss_nm"}
@@ -51,16 +56,24 @@ def main() -> None:
     after = np.array(doc["sim_corrected"]["rms_nm"])
     predicted = np.array(doc["sim_predicted"]["rms_nm"])
     rows = []
-    print(f"\n{'finding':14s} joint  expressible  final value   truth   error")
+    print(f"\n{'finding':14s} joint  expressible  final value   truth   error   in the data  error")
     for f in doc["findings"]:
         value = (f.get("final_magnitude") or {}).get(keys.get(f["effect"], ""), None)
         true = truth[f["effect"]][f["joint"] - 1] if f["effect"] in truth else None
         err = None if value is None or true is None or true == 0 else 100 * (value / true - 1)
-        rows.append({"effect": f["effect"], "joint": f["joint"], "expressible": f["expressible"],
-                     "value": value, "truth": None if true is None else float(true), "error_pct": err})
+        row = {"effect": f["effect"], "joint": f["joint"], "expressible": f["expressible"],
+               "value": value, "truth": None if true is None else float(true), "error_pct": err}
+        extra = ""
+        if f.get("inseparable_link_inertia"):
+            start = body_slice(f["joint"] - 1).start + 4
+            seen = true + sum(model_error[start + INERTIA_FIELDS.index(k)] for k in f["inseparable_link_inertia"])
+            row.update(truth_in_data=float(seen), error_in_data_pct=100 * (value / seen - 1),
+                       inseparable_link_inertia=f["inseparable_link_inertia"])
+            extra = f"   {seen:9.3g}  {row['error_in_data_pct']:+5.1f} % (+ link {', '.join(f['inseparable_link_inertia'])})"
+        rows.append(row)
         print(f"{f['effect']:14s} {f['joint']:5d}  {str(f['expressible']):11s}  "
               f"{'' if value is None else f'{value:11.4g}'}  {'' if true is None else f'{true:6.3g}'}  "
-              f"{'' if err is None else f'{err:+5.1f} %'}")
+              f"{'' if err is None else f'{err:+5.1f} %'}{extra}")
     cut = 100 * (1 - after / before)
     pred = 100 * (1 - predicted / before)
     print("validation RMS [N·m], baseline  " + " ".join(f"{v:7.3f}" for v in before))

@@ -201,3 +201,83 @@ def test_downloaded_like_ur5e_mjcf_against_a_realistic_run(tmp_path):
     assert big.all()
     assert np.all(after[big] <= 0.5 * before[big])
     np.testing.assert_allclose(100 * (1 - after / before), 100 * (1 - predicted / before), atol=3.0)
+
+
+def test_link_inertia_is_told_from_armature_only_where_the_chain_separates_them(ur5_models, tmp_path):
+    """Joint 1's axis, and joint 2's (perpendicular to joint 1's), see their link's inertia about the
+    axis only as I·q̈ on the joint itself, exactly as armature: those fields are folded into the
+    armature; every other link's inertia field is a candidate of its own. The written correction
+    changes the simulator's torque by exactly the candidate's columns."""
+    from urident.gap.data import build_set
+    from urident.gap.sim_baseline import INERTIA_FIELDS, link_inertia_candidates, link_inertia_columns, make_sim_context
+    from urident.logs import load_log
+    from urident.model import regressor_blocks
+    from urident.model.parameters import body_slice, inertia_tensor
+    from urident.sim.correct import write_corrected
+    from urident.sim.models import load_sim_model
+
+    spec = ur5_models["spec"]
+    sim = load_sim_model(ur5_models["xml"], spec)
+    ctx = make_sim_context(sim, build_set([load_log(VALID, robot="ur5")], spec))
+    about_axis = {"x": "A", "y": "B", "z": "C"}
+    kept, aliased = link_inertia_columns(spec, ctx, 0)
+    assert kept == () and aliased == (about_axis[spec.joints[0].axis],)
+    kept, aliased = link_inertia_columns(spec, ctx, 1)
+    assert aliased == (about_axis[spec.joints[1].axis],) and aliased[0] not in kept and len(kept) >= 3
+    for j in range(2, 6):
+        assert link_inertia_columns(spec, ctx, j)[1] == ()
+    assert sorted(c[0].joint for c in link_inertia_candidates(spec, ctx)) == [1, 2, 3, 4, 5]
+    # an inertia change of link 3 written into the MJCF moves MuJoCo's torque by its columns
+    p10 = np.zeros(10)
+    p10[4:10] = [0.004, 0.01, 0.006, 0.001, -0.002, 0.0015]
+    changes = {k: np.zeros(6) for k in ("armature", "damping", "frictionloss", "mass")}
+    changes.update(first_moment=np.zeros((6, 3)), inertia=np.zeros((6, 3, 3)), payload=None)
+    changes["inertia"][2] = inertia_tensor(p10)
+    new = load_sim_model(write_corrected(sim, spec, changes, tmp_path / "inertia.xml"), spec)
+    rng = np.random.default_rng(5)
+    q, qd, qdd = rng.uniform(-2, 2, (20, 6)), rng.normal(0, 1, (20, 6)), rng.normal(0, 3, (20, 6))
+    delta = np.zeros(78)
+    delta[body_slice(2)] = p10
+    expected = regressor_blocks(spec, q, qd, qdd) @ delta
+    np.testing.assert_allclose(new.rigid(q, qd, qdd) - sim.rigid(q, qd, qdd), expected, atol=1e-6)
+    assert INERTIA_FIELDS == ("A", "B", "C", "D", "E", "F")
+
+
+def test_write_sim_urdf_writes_links_inertia_and_payload_too(ur5_models, tmp_path):
+    """URDF takes every correction but armature: <dynamics>, a link's mass, centre of mass and
+    inertia, and a payload as a fixed link on the flange; Pinocchio's torque moves by exactly the
+    corrections' columns."""
+    from urident.ident.features import payload_columns
+    from urident.model import regressor_blocks
+    from urident.model.parameters import body_slice, inertia_tensor
+    from urident.sim.correct import write_corrected
+    from urident.sim.models import load_sim_model
+
+    spec = ur5_models["spec"]
+    sim = load_sim_model(ur5_models["urdf"], spec)
+    changes = {"armature": np.zeros(6), "damping": np.array([0, 4.0, 0, 0, 0, 0]),
+               "frictionloss": np.array([0, 0, 5.0, 0, 0, 0]), "mass": np.array([0, 0, 0.5, 0, 0, 0]),
+               "first_moment": np.zeros((6, 3)), "inertia": np.zeros((6, 3, 3)), "payload": (1.5, np.zeros(3))}
+    changes["first_moment"][2] = [0.002, 0.001, 0.02]
+    p10 = np.zeros(10)
+    p10[4:10] = [0.002, 0.003, 0.001, 0.0002, -0.0001, 0.0003]
+    changes["inertia"][3] = inertia_tensor(p10)
+    out = write_corrected(sim, spec, changes, tmp_path / "corrected.urdf", notes=["a note"])
+    assert "a note" in out.read_text() and 'name="payload"' in out.read_text()
+    new = load_sim_model(out, spec)
+    np.testing.assert_allclose(new.damping, sim.damping + changes["damping"], atol=1e-12)
+    np.testing.assert_allclose(new.friction, sim.friction + changes["frictionloss"], atol=1e-12)
+    rng = np.random.default_rng(4)
+    q, qd, qdd = rng.uniform(-2, 2, (20, 6)), rng.normal(0, 1, (20, 6)), rng.normal(0, 3, (20, 6))
+    blocks = regressor_blocks(spec, q, qd, qdd)
+    delta = np.zeros(blocks.shape[2])
+    delta[body_slice(2)][:4] = [0.5, 0.002, 0.001, 0.02]
+    delta[body_slice(3)] = p10
+    expected = blocks @ delta + 1.5 * payload_columns(blocks, spec.tool_xyz)[:, :, 0]
+    np.testing.assert_allclose(new.rigid(q, qd, qdd) - sim.rigid(q, qd, qdd), expected, atol=1e-4)
+    # a correction that leaves no real mass distribution is refused, and named by unrealisable_links
+    from urident.sim.correct import unrealisable_links
+
+    bad = dict(changes, inertia=np.zeros((6, 3, 3)))
+    bad["inertia"][4] = -np.eye(3)
+    assert unrealisable_links(sim, spec, bad) == [4]

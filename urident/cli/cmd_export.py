@@ -15,8 +15,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "export", help="write identified parameters as a MuJoCo (MJCF) or URDF model",
         description="Write the physically consistent estimate of PARAMS.yaml as a simulator model: link "
                     "inertials, rotor inertia as joint armature (MJCF only), viscous friction as damping, "
-                    "Coulomb friction as frictionloss (MJCF) or <dynamics friction> (URDF), joint limits "
-                    "and capsule collision geometry. The identified terms the format cannot express are "
+                    "Coulomb friction as frictionloss (MJCF) or <dynamics friction> (URDF), joint limits, "
+                    "capsule collision geometry and, with --payload, the payload as a body on the flange. The identified terms the format cannot express are "
                     "listed in the file's header and here, with their share of the torque of the "
                     "--valid logs.")
     p.add_argument("params", metavar="PARAMS.yaml", nargs="?", default=None,
@@ -29,6 +29,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="validation logs: the share of their torque each inexpressible term carries")
     p.add_argument("--robot", default=None, help="robot (default: the parameters file's)")
     p.add_argument("--name", default=None, help="model name in the files (default ROBOT_identified)")
+    options.add_payload_argument(p, "written as a body 'payload' on the flange")
     options.add_overwrite_argument(p, "existing model files")
     add_log_arguments(p)
     p.set_defaults(func=run)
@@ -64,12 +65,14 @@ def run(args: argparse.Namespace) -> int:
         check_exportable(params.standard, "export")
     except ConfigError as exc:
         raise ConfigError(f"{args.params}: {exc}") from None
+    payload = options.load_payload_arg(args, spec)
     data = None
     if args.valid:
         recordings = [load_log_from_args(path, args, robot=spec.name) for path in args.valid]
-        data = predict_recordings(params, recordings, spec).data
+        data = predict_recordings(params, recordings, spec, payload=payload).data
     header = [f"exported by urident from {args.params} (robot {spec.name}, method {params.method}, "
               f"Coulomb model {params.model.coulomb}, tanh eps {params.model.friction_eps:g} rad/s)"]
+    header += _payload_note(args, payload)
     if data is not None:
         header.append("shares: RMS of the term's torque / RMS of the measured torque on "
                       + ", ".join(str(v) for v in args.valid))
@@ -81,7 +84,8 @@ def run(args: argparse.Namespace) -> int:
         if not terms:
             notes.append("every identified term is expressed")
         kwargs = {"friction_eps": params.model.friction_eps} if fmt == "mjcf" else {}
-        write(spec, params.standard, path, name=args.name, notes=notes, overwrite=args.overwrite, **kwargs)
+        write(spec, params.standard, path, name=args.name, notes=notes, overwrite=args.overwrite,
+              payload=payload, **kwargs)
         print(f"wrote {path} ({fmt.upper()})")
         for t in terms:
             print(f"  {t.line()}")
@@ -105,11 +109,22 @@ def _nominal(args: argparse.Namespace) -> int:
     note = spec.nominal_note()
     if note:
         notes.append(note)
+    payload = options.load_payload_arg(args, spec)
+    notes += _payload_note(args, payload)
     name = args.name or f"{spec.name}_nominal"
     if args.mjcf:
-        write_mjcf(spec, spec.nominal_params, args.mjcf, name=name, notes=notes, overwrite=args.overwrite)
+        write_mjcf(spec, spec.nominal_params, args.mjcf, name=name, notes=notes, overwrite=args.overwrite,
+                   payload=payload)
         print(f"wrote {args.mjcf} (MJCF)")
     if args.urdf:
-        write_urdf(spec, spec.nominal_params, args.urdf, name=name, notes=notes, overwrite=args.overwrite)
+        write_urdf(spec, spec.nominal_params, args.urdf, name=name, notes=notes, overwrite=args.overwrite,
+                   payload=payload)
         print(f"wrote {args.urdf} (URDF)")
     return 0
+
+
+def _payload_note(args: argparse.Namespace, payload) -> list[str]:
+    """The header line of ``--payload`` (none without one)."""
+    if payload is None:
+        return []
+    return [f"payload {args.payload} on the flange (body/link 'payload'): {payload.describe()}"]

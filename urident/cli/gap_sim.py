@@ -8,8 +8,9 @@ import json
 
 from urident.cli import options
 
-#: --max-effects default with --sim: a downloaded model typically lacks three terms on six joints
-SIM_MAX_EFFECTS = 12
+#: --max-effects default with --sim: a downloaded model typically lacks three terms (armature,
+#: damping, frictionloss) on six joints; fewer cuts the wrist's small terms, whose gains come last
+SIM_MAX_EFFECTS = 18
 
 
 def run_sim(args: argparse.Namespace, load_all, json_default) -> int:
@@ -21,7 +22,8 @@ def run_sim(args: argparse.Namespace, load_all, json_default) -> int:
     from urident.gap import GapConfig, format_report
     from urident.gap.candidates import EFFECTS
     from urident.gap.results import e_n, rms
-    from urident.gap.sim_baseline import corrections, diagnose_sim, expressible, expressible_fit
+    from urident.gap.sim_baseline import (corrections, diagnose_sim, expressible, expressible_fit,
+                                          link_inertia_columns)
     from urident.model import load_robot
     from urident.sim.models import load_sim_model, model_format
 
@@ -57,27 +59,31 @@ def run_sim(args: argparse.Namespace, load_all, json_default) -> int:
         shown = ", ".join(f"{k} = {v:.4g}" for k, v in value.items() if isinstance(v, float))
         print(f"  {f.effect:22s} joint {f.joint}  {'expressible' if yes else 'NOT expressible':16s} "
               f"{f.shrink_pct:5.1f} % shrink  {shown}")
+        if f.effect == "armature":
+            aliased = link_inertia_columns(spec, result.valid, f.joint - 1)[1]
+            if aliased:
+                print(f"    (holds rotor inertia plus the error of link {f.joint}'s inertia {', '.join(aliased)} about "
+                      f"K_{f.joint}: they act alike on these states and in the simulator, nothing tells them apart)")
     doc = result.as_dict()
     final = final_fit
     for fd, f in zip(doc.get("findings", []), result.findings):
         fd["expressible"] = expressible(fmt, f.effect)
         # the value to put into the model: all chosen corrections fitted together
         fd["final_magnitude"] = final.get((f.effect, None if f.effect == "payload_error" else f.joint - 1))
+        if f.effect == "armature":
+            # link inertia fields the armature value also holds (inseparable from it)
+            fd["inseparable_link_inertia"] = list(link_inertia_columns(spec, result.valid, f.joint - 1)[1])
     doc["baseline"]["sim_model"] = {"path": str(args.sim), "format": fmt}
     r0 = result.valid.residual
     chosen, fit = expressible_fit(result)
-    written = [c for c in chosen if fmt == "mjcf" or c.effect in ("damping", "frictionloss")]
-    if len(written) != len(chosen):
-        print("  URDF: link mass/CoM and payload corrections are not written by --write-sim (only <dynamics>)")
-    if fmt == "mjcf":
-        from urident.sim.correct import unrealisable_links
+    from urident.sim.correct import unrealisable_links
 
-        bad = set(unrealisable_links(sim, spec, corrections(result)))
-        for c in written:
-            if c.effect == "rigid_body" and c.joint in bad:
-                print(f"  {c.name}: not a real mass distribution (the inertia about the new centre of mass "
-                      "would not be positive): not written")
-        written = [c for c in written if not (c.effect == "rigid_body" and c.joint in bad)]
+    bad = set(unrealisable_links(sim, spec, corrections(result)))
+    for c in chosen:
+        if c.effect in ("rigid_body", "link_inertia") and c.joint in bad:
+            print(f"  {c.name}: not a real mass distribution (the inertia about the new centre of mass "
+                  "would not be positive): not written")
+    written = [c for c in chosen if not (c.effect in ("rigid_body", "link_inertia") and c.joint in bad)]
     if len(written) != len(chosen):
         fit = result.correction(written)
     predicted = r0 - fit.change(result.valid) if written else r0

@@ -10,7 +10,16 @@ armature       q̈_j                                         joint ``armature`` 
 damping        q̇_j                                         ``damping``
 frictionloss   tanh(q̇_j/ε)                                 ``frictionloss`` / ``friction``
 rigid_body     body j's m, m·ρ columns of the regressor      link ``<inertial>`` mass and CoM
+link_inertia   body j's inertia columns (A … F about K_j)    link ``<inertial>`` inertia
+               the data separate from armature j
 =============  ==========================================  ===================================
+
+Link inertia against armature: when joint j's axis is perpendicular to every earlier axis (joint 1
+always; joint 2 of a UR arm) the link's inertia about its own axis enters the dynamics exactly as
+the joint's armature does (only as I·q̈_j on joint j), so neither the data nor the simulator can tell
+them apart: :func:`link_inertia_columns` keeps only the inertia columns that are not a combination
+of armature j and the columns kept before (on the validation states), and the armature finding
+then holds rotor inertia plus that part of the link's inertia error (the report says so).
 
 plus ``payload_error`` (a body on the flange) and ``torque_constant_error`` (a drive gain scale,
 a property of the measurement, which no simulator format holds). :func:`expressible` says which
@@ -31,10 +40,15 @@ from urident.gap.data import build_set
 from urident.gap.residual import SetContext, smooth_derivative
 from urident.ident.design import ModelConfig
 
-SIM_EFFECTS = ("armature", "damping", "frictionloss", "rigid_body")
+SIM_EFFECTS = ("armature", "damping", "frictionloss", "rigid_body", "link_inertia")
 #: Findings each format can express (the rest: the catalogue's effects, a drive gain scale).
-EXPRESSIBLE = {"mjcf": frozenset({"armature", "damping", "frictionloss", "rigid_body", "payload_error"}),
-               "urdf": frozenset({"damping", "frictionloss", "rigid_body", "payload_error"})}
+EXPRESSIBLE = {"mjcf": frozenset({"armature", "damping", "frictionloss", "rigid_body", "link_inertia",
+                                  "payload_error"}),
+               "urdf": frozenset({"damping", "frictionloss", "rigid_body", "link_inertia", "payload_error"})}
+#: body parameters A … F (inertia about K_j) within body_slice(j)
+INERTIA_FIELDS = ("A", "B", "C", "D", "E", "F")
+#: a column is "a combination of the others" when its part outside their span is below this share
+ALIAS_TOL = 1e-6
 
 
 def expressible(fmt: str, effect: str) -> bool:
@@ -67,7 +81,21 @@ class SimCandidate(Candidate):
             out["frictionloss_nm"] = b[0]
         elif self.effect == "rigid_body":
             out.update(mass_change_kg=b[0], first_moment_change_kg_m=b[1:4])
+        elif self.effect == "link_inertia":
+            out.update(inertia_change_kg_m2=inertia_change(self, beta).tolist())
+            if self.settings.get("aliased"):
+                out.update(folded_into_armature=list(self.settings["aliased"]))
         return out
+
+
+def inertia_change(c: Candidate, beta) -> np.ndarray:
+    """(3, 3) change of link ``c.joint``'s inertia about K_j (K_j's axes) for a ``link_inertia``
+    candidate's coefficients (its dropped columns change nothing)."""
+    from urident.model.parameters import inertia_tensor
+
+    p10 = np.zeros(10)
+    p10[[4 + INERTIA_FIELDS.index(f) for f in c.settings["fields"]]] = np.asarray(beta, float)
+    return inertia_tensor(p10)
 
 
 def _on_joint(ctx, j, column) -> np.ndarray:
@@ -102,6 +130,52 @@ def sim_candidates(spec) -> list[list[Candidate]]:
     return out
 
 
+def link_inertia_columns(spec, ctx, j: int) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """(kept, aliased): body j's inertia fields (A … F) that the validation states tell apart from
+    armature j and from each other, and those that are a combination of armature j (and the kept
+    ones) there, i.e. cannot be separated from it; fields with no effect at all are in neither."""
+    from urident.model.parameters import body_slice
+
+    y = _regressor(ctx, spec)
+    start = body_slice(j).start + 4
+    arm = np.zeros((ctx.n, 6))
+    arm[:, j] = ctx.qdd[:, j]
+    basis = [arm.reshape(-1) / max(np.linalg.norm(arm), 1e-300)]
+    kept, aliased = [], []
+    for k, name in enumerate(INERTIA_FIELDS):
+        col = y[:, :, start + k].reshape(-1)
+        norm = np.linalg.norm(col)
+        if not norm > 0:
+            continue
+        rest = col - np.column_stack(basis) @ (np.column_stack(basis).T @ col)
+        rest -= np.column_stack(basis) @ (np.column_stack(basis).T @ rest)   # once more: orthogonal to 1e-16
+        if np.linalg.norm(rest) <= ALIAS_TOL * norm:
+            # needing armature j to express it: inseparable from it (else a regrouping inside the link)
+            own = np.column_stack(basis[1:]) if len(basis) > 1 else np.zeros((col.size, 0))
+            if np.linalg.norm(col - own @ (own.T @ col)) > ALIAS_TOL * norm:
+                aliased.append(name)
+            continue
+        kept.append(name)
+        basis.append(rest / np.linalg.norm(rest))
+    return tuple(kept), tuple(aliased)
+
+
+def link_inertia_candidates(spec, ctx) -> list[list[Candidate]]:
+    """One ``link_inertia`` family per link whose inertia the validation states can see."""
+    from urident.model.parameters import body_slice
+
+    out = []
+    for j in range(6):
+        kept, aliased = link_inertia_columns(spec, ctx, j)
+        if not kept:
+            continue
+        cols = [body_slice(j).start + 4 + INERTIA_FIELDS.index(f) for f in kept]
+        out.append([SimCandidate("link_inertia", j, f"link {j + 1} inertia", "cv", kept,
+                                 lambda c, cols=cols: _regressor(c, spec)[:, :, cols],
+                                 {"fields": kept, "aliased": aliased})])
+    return out
+
+
 def make_sim_context(sim, data) -> SetContext:
     p = data.prepared
     tau_hat = sim.predict(p.q, p.qd, p.qdd)
@@ -128,7 +202,7 @@ def diagnose_sim(valid_recordings: Sequence, spec, sim, *, drive_gains=None,
     ctx = make_sim_context(sim, valid)
     scorer = Scorer(ctx, ctx, config.n_folds)
     where = describe_where(ctx, ctx)
-    fams = sim_candidates(spec)
+    fams = sim_candidates(spec) + link_inertia_candidates(spec, ctx)
     fams.append([payload_error(spec, "cv")])
     fams += [[torque_constant_error(j, "cv")] for j in range(6)]
     seen = {("payload_error", None)} | {("torque_constant_error", j) for j in range(6)}
@@ -154,10 +228,12 @@ def corrections(result, candidates=None) -> dict:
     """The expressible findings of a :func:`diagnose_sim` result (or only ``candidates`` of them,
     refitted together) as model changes:
     ``{"armature": (6,), "damping": (6,), "frictionloss": (6,), "mass": (6,), "first_moment": (6, 3),
-    "payload": (mass, first moment (3,)) or None}`` (additions to the model's values)."""
+    "inertia": (6, 3, 3) about K_j in K_j's axes, "payload": (mass, first moment (3,)) or None}``
+    (additions to the model's values)."""
     fmt = result.model.fmt
     out = {"armature": np.zeros(6), "damping": np.zeros(6), "frictionloss": np.zeros(6),
-           "mass": np.zeros(6), "first_moment": np.zeros((6, 3)), "payload": None}
+           "mass": np.zeros(6), "first_moment": np.zeros((6, 3)), "inertia": np.zeros((6, 3, 3)),
+           "payload": None}
     fit = result.fit if candidates is None else result.correction(list(candidates))
     for c, beta in fit.coefficients().items():
         if not expressible(fmt, c.effect):
@@ -167,6 +243,8 @@ def corrections(result, candidates=None) -> dict:
         elif c.effect == "rigid_body":
             out["mass"][c.joint] += beta[0]
             out["first_moment"][c.joint] += beta[1:4]
+        elif c.effect == "link_inertia":
+            out["inertia"][c.joint] += inertia_change(c, beta)
         elif c.effect == "payload_error":
             out["payload"] = (float(beta[0]), np.asarray(beta[1:4], float))
     return out

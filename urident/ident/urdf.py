@@ -94,9 +94,27 @@ def _collision(capsules, indent: str) -> list[str]:
     return out
 
 
-def to_urdf(spec, standard: np.ndarray, name: str | None = None, notes=()) -> str:
+def _inertial(indent: str, m: float, com, ic) -> list[str]:
+    return [f"{indent}<inertial>", f'{indent}  <origin xyz="{_fmt(com)}" rpy="0 0 0"/>',
+            f'{indent}  <mass value="{m:.12g}"/>',
+            f'{indent}  <inertia ixx="{ic[0, 0]:.12g}" ixy="{ic[0, 1]:.12g}" ixz="{ic[0, 2]:.12g}" '
+            f'iyy="{ic[1, 1]:.12g}" iyz="{ic[1, 2]:.12g}" izz="{ic[2, 2]:.12g}"/>', f"{indent}</inertial>"]
+
+
+def payload_link(payload, parent: str = "tool0", indent: str = "  ") -> list[str]:
+    """URDF lines of ``payload`` (a :class:`urident.ident.payload.Payload`, flange frame) as a link
+    ``payload`` on a fixed joint at ``parent`` (the flange frame ``tool0``)."""
+    return ([f'{indent}<link name="payload">',
+             *_inertial(indent + "  ", payload.mass_kg, payload.com_m, payload.inertia_kg_m2),
+             f"{indent}</link>", f'{indent}<joint name="payload_fixed" type="fixed">',
+             f'{indent}  <parent link="{parent}"/>', f'{indent}  <child link="payload"/>',
+             f'{indent}  <origin xyz="0 0 0" rpy="0 0 0"/>', f"{indent}</joint>"])
+
+
+def to_urdf(spec, standard: np.ndarray, name: str | None = None, notes=(), payload=None) -> str:
     """URDF text of ``spec``'s kinematics with the 78-vector ``standard``; ``notes``: more lines of
-    the header comment (e.g. the identified terms URDF cannot express)."""
+    the header comment (e.g. the identified terms URDF cannot express); ``payload``: a
+    :class:`urident.ident.payload.Payload`, a fixed link ``payload`` on the flange ``tool0``."""
     p = check_exportable(standard, "URDF")
     name = name or f"{spec.name}_identified"
     axes = {"x": "1 0 0", "y": "0 1 0", "z": "0 0 1"}
@@ -109,11 +127,8 @@ def to_urdf(spec, standard: np.ndarray, name: str | None = None, notes=()) -> st
     for i, joint in enumerate(spec.joints):
         m, com, ic = link_inertial(p[body_slice(i)])
         link = f"{joint.name}_link"
-        out += [f'  <link name="{link}">', "    <inertial>",
-                f'      <origin xyz="{_fmt(com)}" rpy="0 0 0"/>', f'      <mass value="{m:.12g}"/>',
-                f'      <inertia ixx="{ic[0, 0]:.12g}" ixy="{ic[0, 1]:.12g}" ixz="{ic[0, 2]:.12g}" '
-                f'iyy="{ic[1, 1]:.12g}" iyz="{ic[1, 2]:.12g}" izz="{ic[2, 2]:.12g}"/>',
-                "    </inertial>", *_collision(joint.collision, "    "), "  </link>",
+        out += [f'  <link name="{link}">', *_inertial("    ", m, com, ic),
+                *_collision(joint.collision, "    "), "  </link>",
                 f'  <joint name="{joint.name}" type="revolute">',
                 f'    <parent link="{parent}"/>', f'    <child link="{link}"/>',
                 f'    <origin xyz="{_fmt(joint.xyz)}" rpy="{_fmt(_rpy(joint.rotation))}"/>',
@@ -126,15 +141,18 @@ def to_urdf(spec, standard: np.ndarray, name: str | None = None, notes=()) -> st
     out += ['  <link name="tool0"/>', '  <joint name="tool0_fixed" type="fixed">',
             f'    <parent link="{parent}"/>', '    <child link="tool0"/>',
             f'    <origin xyz="{_fmt(spec.tool_xyz)}" rpy="{_fmt(_rpy(spec.tool_rotation))}"/>',
-            "  </joint>", "</robot>", ""]
+            "  </joint>"]
+    if payload is not None:
+        out += payload_link(payload)
+    out += ["</robot>", ""]
     return "\n".join(out)
 
 
 def write_urdf(spec, standard: np.ndarray, path: str | Path, name: str | None = None,
-               overwrite: bool = True, notes=()) -> Path:
+               overwrite: bool = True, notes=(), payload=None) -> Path:
     """Write the URDF atomically, never through a symbolic link (``overwrite=False``: must be new)."""
     from urident.fileio import write_text_atomic
 
     path = Path(path)
-    write_text_atomic(path, to_urdf(spec, standard, name, notes), fsync=False, overwrite=overwrite)
+    write_text_atomic(path, to_urdf(spec, standard, name, notes, payload), fsync=False, overwrite=overwrite)
     return path

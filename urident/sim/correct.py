@@ -5,9 +5,11 @@ and Coulomb friction become the model's value plus the correction (MJCF: ``frict
 two pieces of :mod:`urident.sim.mjcf`, joint and fixed tendon ``<joint>_friction``, so MuJoCo's
 force follows tanh(q̇/ε); URDF: ``<dynamics damping friction>``). A link's mass and first-moment
 correction (about the robot's joint frame K_i, turned into the body's frame) moves its inertial's
-mass and centre of mass and keeps its inertia about K_i's origin, as the correction's columns do. A payload is a
-point mass body ``payload`` at the tool point (MJCF). URDF: link and payload corrections are not
-written (listed by the caller).
+mass and centre of mass and keeps its inertia about K_i's origin, as the correction's columns do; a link
+inertia correction (about K_i's origin, K_i's axes) is added to that inertia. A payload is a
+point mass body ``payload`` at the tool point (MJCF), a fixed link ``payload`` there (URDF). URDF has
+no armature (the caller lists it as not expressible). A world base frame is assumed to be the robot's
+(the model loader checked the chain against the robot file).
 """
 
 from __future__ import annotations
@@ -32,6 +34,11 @@ def _fmt(values) -> str:
 def _shift(x: np.ndarray) -> np.ndarray:
     """Parallel-axis term |x|²·1 − x·xᵀ (per kg)."""
     return x @ x * np.eye(3) - np.outer(x, x)
+
+
+def _inertia(changes: dict, i: int) -> np.ndarray:
+    """Link i's inertia change about K_i (K_i's axes); none when ``changes`` has no ``inertia``."""
+    return np.asarray(changes["inertia"][i], float) if "inertia" in changes else np.zeros((3, 3))
 
 
 def _mjcf_text(sim, spec, changes: dict, notes) -> str:
@@ -76,8 +83,8 @@ def _mjcf_text(sim, spec, changes: dict, notes) -> str:
             fixed = ET.SubElement(tendons, "fixed", name=f"{name}_friction", frictionloss=f"{fc * s2:.12g}",
                                   solreffriction=ref, solimpfriction=imp)
             ET.SubElement(fixed, "joint", joint=name, coef="1")
-        dm, dh = changes["mass"][i], changes["first_moment"][i]
-        if dm != 0 or np.any(dh != 0):
+        dm, dh, di = changes["mass"][i], changes["first_moment"][i], _inertia(changes, i)
+        if dm != 0 or np.any(dh != 0) or np.any(di != 0):
             b = int(model.jnt_bodyid[i])
             body = parents[joint]
             m = float(model.body_mass[b])
@@ -92,7 +99,7 @@ def _mjcf_text(sim, spec, changes: dict, notes) -> str:
             # the correction keeps the inertia about K_i's origin (its columns are m and m·ρ only)
             ri = np.array(data.ximat[b]).reshape(3, 3)
             i_com = ri @ np.diag(model.body_inertia[b]) @ ri.T
-            about_k = i_com + m * _shift(com - pos[0, i])
+            about_k = i_com + m * _shift(com - pos[0, i]) + rot[0, i] @ di @ rot[0, i].T
             i_new = about_k - mass * _shift(new_com - pos[0, i])
             if np.linalg.eigvalsh(i_new).min() < 0:
                 raise ConfigError(f"{sim.path}: the mass/CoM correction of body {body.get('name')!r} is not a "
@@ -119,9 +126,18 @@ def _mjcf_text(sim, spec, changes: dict, notes) -> str:
     return '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
 
 
-def _urdf_text(sim, changes: dict, notes) -> str:
+def _urdf_text(sim, spec, changes: dict, notes) -> str:
+    import pinocchio as pin
+
+    from urident.ident.urdf import _rpy, payload_link
+    from urident.model.kinematics import frame_poses
+    from urident.model.robot import rpy_to_matrix
+
     tree = _parse(sim.path)
     root = tree.getroot()
+    model, data = sim.handle
+    pin.forwardKinematics(model, data, np.zeros(model.nq))
+    rot, pos = frame_poses(spec, np.zeros((1, 6)))
     for i, name in enumerate(sim.joint_names):
         joint = root.find(f"joint[@name='{name}']")
         dyn = joint.find("dynamics")
@@ -129,6 +145,61 @@ def _urdf_text(sim, changes: dict, notes) -> str:
             dyn = ET.SubElement(joint, "dynamics")
         dyn.set("damping", f"{max(sim.damping[i] + changes['damping'][i], 0.0):.12g}")
         dyn.set("friction", f"{max(sim.friction[i] + changes['frictionloss'][i], 0.0):.12g}")
+        dm, dh, di = changes["mass"][i], changes["first_moment"][i], _inertia(changes, i)
+        if dm == 0 and not np.any(dh != 0) and not np.any(di != 0):
+            continue
+        child = joint.find("child").get("link")
+        link = root.find(f"link[@name='{child}']")
+        # K_i in the child link's frame (both move with joint i: a constant transform)
+        frame = data.oMi[i + 1]
+        r_k = frame.rotation.T @ rot[0, i]
+        t_k = frame.rotation.T @ (pos[0, i] - frame.translation)
+        m0, c0, ic0 = 0.0, np.zeros(3), np.zeros((3, 3))
+        inertial = link.find("inertial")
+        if inertial is not None:
+            origin = inertial.find("origin")
+            xyz = [float(v) for v in (origin.get("xyz", "0 0 0") if origin is not None else "0 0 0").split()]
+            rpy = [float(v) for v in (origin.get("rpy", "0 0 0") if origin is not None else "0 0 0").split()]
+            m0, c0 = float(inertial.find("mass").get("value")), np.array(xyz)
+            e = inertial.find("inertia")
+            g = {k: float(e.get(k, 0)) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}
+            ic = np.array([[g["ixx"], g["ixy"], g["ixz"]], [g["ixy"], g["iyy"], g["iyz"]],
+                           [g["ixz"], g["iyz"], g["izz"]]])
+            r = rpy_to_matrix(np.array(rpy))
+            ic0 = r @ ic @ r.T
+            link.remove(inertial)
+        mass = m0 + dm
+        if not mass > 0:
+            raise ConfigError(f"{sim.path}: correcting link {child!r} leaves mass {mass:g} kg")
+        about_k = ic0 + m0 * _shift(c0 - t_k) + r_k @ di @ r_k.T
+        com = t_k + (m0 * (c0 - t_k) + r_k @ dh) / mass
+        ic1 = about_k - mass * _shift(com - t_k)
+        if np.linalg.eigvalsh(ic1).min() < 0:
+            raise ConfigError(f"{sim.path}: the correction of link {child!r} is not a real mass distribution "
+                              "(drop it: unrealisable_links)")
+        new = ET.Element("inertial")
+        ET.SubElement(new, "origin", xyz=_fmt(com), rpy="0 0 0")
+        ET.SubElement(new, "mass", value=f"{mass:.12g}")
+        ET.SubElement(new, "inertia", ixx=f"{ic1[0, 0]:.12g}", ixy=f"{ic1[0, 1]:.12g}", ixz=f"{ic1[0, 2]:.12g}",
+                      iyy=f"{ic1[1, 1]:.12g}", iyz=f"{ic1[1, 2]:.12g}", izz=f"{ic1[2, 2]:.12g}")
+        link.insert(0, new)
+    payload = changes.get("payload")
+    if payload is not None and payload[0] > 0:
+        last = root.find(f"joint[@name='{sim.joint_names[-1]}']").find("child").get("link")
+        frame = data.oMi[len(sim.joint_names)]
+        xyz = frame.rotation.T @ (pos[0, 6] - frame.translation)
+        rpy = _rpy(frame.rotation.T @ rot[0, 6])
+        for old in [e for e in root if e.get("name") in ("payload", "payload_fixed")]:
+            root.remove(old)
+        from urident.ident.payload import Payload
+
+        point = Payload(spec.name, payload[0], np.zeros(3), np.eye(3) * 1e-6 * payload[0])
+        text = "<r>" + "".join(payload_link(point, parent=last, indent="")) + "</r>"
+        for e in ET.fromstring(text):
+            if e.tag == "joint":
+                e.find("origin").set("xyz", _fmt(xyz))
+                e.find("origin").set("rpy", _fmt(rpy))
+            root.append(e)
     for line in reversed(list(notes)):
         root.insert(0, ET.Comment(" " + line.replace("--", "- -") + " "))
     ET.indent(tree)
@@ -142,7 +213,7 @@ def unrealisable_links(sim, spec, changes: dict) -> list[int]:
     from urident.model.kinematics import frame_poses
 
     if sim.fmt != "mjcf":
-        return []
+        return _unrealisable_urdf(sim, spec, changes)
     from urident.sim.mujoco_model import import_mujoco
 
     mj = import_mujoco()
@@ -153,14 +224,15 @@ def unrealisable_links(sim, spec, changes: dict) -> list[int]:
     rot, _ = frame_poses(spec, np.zeros((1, 6)))
     out = []
     for i in range(len(sim.joint_names)):
-        dm, dh = changes["mass"][i], changes["first_moment"][i]
-        if dm == 0 and not np.any(dh != 0):
+        dm, dh, di = changes["mass"][i], changes["first_moment"][i], _inertia(changes, i)
+        if dm == 0 and not np.any(dh != 0) and not np.any(di != 0):
             continue
         b = int(model.jnt_bodyid[i])
         m = float(model.body_mass[b])
         com = np.array(data.xipos[b])
         ri = np.array(data.ximat[b]).reshape(3, 3)
-        about_k = ri @ np.diag(model.body_inertia[b]) @ ri.T + m * _shift(com - pos[0, i])
+        about_k = (ri @ np.diag(model.body_inertia[b]) @ ri.T + m * _shift(com - pos[0, i])
+                   + rot[0, i] @ di @ rot[0, i].T)
         mass = m + dm
         if not mass > 0:
             out.append(i)
@@ -171,11 +243,29 @@ def unrealisable_links(sim, spec, changes: dict) -> list[int]:
     return out
 
 
+def _unrealisable_urdf(sim, spec, changes: dict) -> list[int]:
+    out = []
+    for i in range(len(sim.joint_names)):
+        one = {k: np.zeros_like(np.asarray(changes[k], float)) for k in ("armature", "damping", "frictionloss",
+                                                                         "mass", "first_moment")}
+        one["inertia"] = np.zeros((6, 3, 3))
+        one["payload"] = None
+        one["mass"][i], one["first_moment"][i], one["inertia"][i] = (changes["mass"][i], changes["first_moment"][i],
+                                                                     _inertia(changes, i))
+        if one["mass"][i] == 0 and not np.any(one["first_moment"][i] != 0) and not np.any(one["inertia"][i] != 0):
+            continue
+        try:
+            _urdf_text(sim, spec, one, ())
+        except ConfigError:
+            out.append(i)
+    return out
+
+
 def write_corrected(sim, spec, changes: dict, path: str | Path, *, notes=(), overwrite: bool = False) -> Path:
     """Write ``sim`` with ``changes`` (:func:`urident.gap.sim_baseline.corrections`) to ``path``."""
     from urident.fileio import write_text_atomic
 
-    text = _mjcf_text(sim, spec, changes, notes) if sim.fmt == "mjcf" else _urdf_text(sim, changes, notes)
+    text = _mjcf_text(sim, spec, changes, notes) if sim.fmt == "mjcf" else _urdf_text(sim, spec, changes, notes)
     path = Path(path)
     write_text_atomic(path, text, fsync=False, overwrite=overwrite)
     return path

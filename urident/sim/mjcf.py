@@ -95,14 +95,18 @@ def _capsules(capsules, indent: str, group: str) -> list[str]:
 
 
 def to_mjcf(spec, standard: np.ndarray, name: str | None = None, notes=(),
-            friction_eps: float = 0.01) -> str:
+            friction_eps: float = 0.01, payload=None) -> str:
     """MJCF text of ``spec``'s kinematics with the 78-vector ``standard``; ``notes``: lines of the
     header comment (e.g. the identified terms MJCF cannot express); ``friction_eps``: the tanh slope
-    [rad/s] the frictionloss imitates."""
+    [rad/s] the frictionloss imitates; ``payload``: a :class:`urident.ident.payload.Payload`, written
+    as a body ``payload`` on the flange (frame ``tool0``)."""
     from urident.ident.urdf import check_exportable, link_inertial
 
     p = check_exportable(standard, "MJCF")
-    weights = inverse_weights(spec, p)
+    loaded = p.copy()
+    if payload is not None:     # MuJoCo's dof_invweight0 (the friction softness) includes the payload
+        loaded[body_slice(len(spec.joints) - 1)] += payload.body_params(spec)
+    weights = inverse_weights(spec, loaded)
     name = name or f"{spec.name}_identified"
     out = ['<?xml version="1.0"?>', f"<mujoco model={quoteattr(name)}>"]
     out += ["  " + _comment(line) for line in notes]
@@ -140,6 +144,13 @@ def to_mjcf(spec, standard: np.ndarray, name: str | None = None, notes=(),
         indent += "  "
     out.append(f'{indent}<site name="tool0" pos="{_fmt(spec.tool_xyz)}" '
                f'quat="{_fmt(quaternion(spec.tool_rotation))}"/>')
+    if payload is not None:
+        ic, _ = mujoco_inertia(payload.inertia_kg_m2)
+        out += [f'{indent}<body name="payload" pos="{_fmt(spec.tool_xyz)}" '
+                f'quat="{_fmt(quaternion(spec.tool_rotation))}">',
+                f'{indent}  <inertial pos="{_fmt(payload.com_m)}" mass="{payload.mass_kg:.12g}" fullinertia="'
+                f'{_fmt([ic[0, 0], ic[1, 1], ic[2, 2], ic[0, 1], ic[0, 2], ic[1, 2]])}"/>',
+                f"{indent}</body>"]
     for i in reversed(range(len(spec.joints))):
         indent = indent[:-2]
         out.append(f"{indent}</body>")
@@ -173,12 +184,13 @@ def to_mjcf(spec, standard: np.ndarray, name: str | None = None, notes=(),
 
 
 def write_mjcf(spec, standard: np.ndarray, path: str | Path, name: str | None = None, notes=(),
-               overwrite: bool = True, friction_eps: float = 0.01) -> Path:
+               overwrite: bool = True, friction_eps: float = 0.01, payload=None) -> Path:
     """Write the MJCF atomically, never through a symbolic link (``overwrite=False``: must be new)."""
     from urident.fileio import write_text_atomic
 
     path = Path(path)
-    write_text_atomic(path, to_mjcf(spec, standard, name, notes, friction_eps), fsync=False, overwrite=overwrite)
+    write_text_atomic(path, to_mjcf(spec, standard, name, notes, friction_eps, payload), fsync=False,
+                      overwrite=overwrite)
     return path
 
 
