@@ -11,6 +11,12 @@ def default_block_length(n: int, rate_hz: float) -> int:
     return int(max(min(max(rate_hz, 1.0), n / 10), n / 50, 1))
 
 
+def block_edges(n: int, block_length: int) -> np.ndarray:
+    """Edges of the non-overlapping blocks of about ``block_length`` samples over n samples."""
+    L = max(int(block_length), 1)
+    return np.linspace(0, n, max(n // L, 1) + 1).astype(int)
+
+
 def block_bootstrap_means(d: np.ndarray, block_length: int, n_boot: int = 1000,
                           seed: int = 0) -> np.ndarray:
     """Bootstrap distribution (n_boot, m) of the mean of each column of ``d`` (N, m) [or (N,)],
@@ -19,16 +25,20 @@ def block_bootstrap_means(d: np.ndarray, block_length: int, n_boot: int = 1000,
     squeeze = d.ndim == 1
     if squeeze:
         d = d[:, None]
-    n = d.shape[0]
-    L = max(int(block_length), 1)
-    m_blocks = max(n // L, 1)
-    edges = np.linspace(0, n, m_blocks + 1).astype(int)
+    edges = block_edges(d.shape[0], block_length)
     sums = np.add.reduceat(d, edges[:-1], axis=0)           # (M, m)
-    counts = np.diff(edges).astype(float)                   # (M,)
+    means = bootstrap_block_sums(sums, np.diff(edges).astype(float), n_boot, seed)
+    return means[:, 0] if squeeze else means
+
+
+def bootstrap_block_sums(sums: np.ndarray, counts: np.ndarray, n_boot: int = 1000,
+                         seed: int = 0) -> np.ndarray:
+    """The same bootstrap from the blocks' sums (M, m) and sample counts (M,): what
+    :func:`block_bootstrap_means` reduces its samples to (the scorer keeps only these)."""
+    m_blocks = sums.shape[0]
     rng = np.random.default_rng(seed)
     idx = rng.integers(0, m_blocks, size=(n_boot, m_blocks))
-    means = sums[idx].sum(axis=1) / counts[idx].sum(axis=1)[:, None]
-    return means[:, 0] if squeeze else means
+    return sums[idx].sum(axis=1) / counts[idx].sum(axis=1)[:, None]
 
 
 def interval(samples: np.ndarray, level: float = 0.95) -> tuple[float, float]:

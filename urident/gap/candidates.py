@@ -81,14 +81,10 @@ class Candidate:
         return len(self.columns)
 
     def features(self, ctx: SetContext) -> np.ndarray:
-        # keyed by the candidate itself (identity hash, eq=False), not id(self): the cache then
-        # keeps it alive, so a later candidate can never reuse a freed one's id and its features
-        key = ("features", self)
-        if key not in ctx.cache:
-            f = np.asarray(self.build(ctx), float)
-            assert f.shape == (ctx.n, 6, self.k), (self.name, f.shape)
-            ctx.cache[key] = f
-        return ctx.cache[key]
+        # built afresh, never cached: the scorer keeps only their statistics (bounded memory)
+        f = np.asarray(self.build(ctx), float)
+        assert f.shape == (ctx.n, 6, self.k), (self.name, f.shape)
+        return f
 
     def magnitude(self, beta: np.ndarray, spec=None) -> dict:
         """The fitted coefficients in the effect's own terms."""

@@ -50,9 +50,9 @@ def controller_reference(ctx: SetContext, ident: SetContext | None = None) -> di
            "change_between_runs": None}
     tm_i = None if ident is None else _target_moment(ident)
     if tm_i is not None:
-        beta = np.linalg.lstsq(ident.w, tm_i.reshape(-1), rcond=None)[0]
-        fit_err = _rms(tm_i - (ident.w @ beta).reshape(-1, 6))
-        change = _rms(tm - (ctx.w @ beta).reshape(-1, 6))
+        beta = _fit_design(ident, tm_i)
+        fit_err = _rms(tm_i - ident.design_product(beta))
+        change = _rms(tm - ctx.design_product(beta))
         share = change / max(float(_rms(tm).max()), 1e-12)
         changed = (share > CONTROLLER_CHANGE_SHARE) & (change > 2.0 * fit_err)
         out["change_between_runs"] = {
@@ -60,6 +60,20 @@ def controller_reference(ctx: SetContext, ident: SetContext | None = None) -> di
             "share_of_largest_target": [float(x) for x in share],
             "changed": bool(np.any(changed))}
     return out
+
+
+def _fit_design(ctx: SetContext, y: np.ndarray) -> np.ndarray:
+    """Least squares (minimum norm) of ``y`` (N, 6) on the set's design matrix, streamed: per joint
+    the R factor of [W_j | y_j] (:mod:`urident.ident.reduced`), then one merged triangle."""
+    from urident.ident.reduced import Accumulator
+
+    acc = Accumulator()
+    for a, b, blocks in ctx.chunks():
+        acc.add(blocks, y[a:b])
+    red = acc.result()
+    n = red.n_params
+    r = np.linalg.qr(np.vstack(list(red.r)), mode="r")
+    return np.linalg.lstsq(r[:n, :n], r[:n, n], rcond=None)[0]
 
 
 def _target_moment(ctx: SetContext) -> np.ndarray | None:

@@ -48,13 +48,15 @@ def diagnose_prepared(spec, ident: GapSet, valid: GapSet, *, params=None,
     model = params if params is not None else fit_baseline(spec, ident, config.friction_eps)
     ctx_i = make_context(spec, model, ident)
     ctx_v = make_context(spec, model, valid)
-    scorer = Scorer(ctx_i, ctx_v, config.n_folds)
+    block = default_block_length(ctx_v.n, valid.sample_rate * config.block_s)
+    scorer = Scorer(ctx_i, ctx_v, config.n_folds, block)
     r0 = ctx_v.residual
     where = describe_where(ctx_v, ctx_i)
 
     fams = families(spec, ctx_i, ctx_v, config.effects)
+    scorer.prepare_gains(fams)
     pool = [max(f, key=scorer.training_gain) if len(f) > 1 else f[0] for f in fams]
-    block = default_block_length(ctx_v.n, valid.sample_rate * config.block_s)
+    scorer.prepare(pool)
 
     findings, steps, confounds, current = select(scorer, pool, block, config, ctx_v, spec)
     final_r = current.residual

@@ -4,8 +4,8 @@ Baseline: the paper's model (full base set, OLS, Coulomb friction tanh(q̇/ε), 
 identified with :func:`urident.ident.identify` on the identification set, or loaded from a
 parameters file. Residual r = τ_measured − τ̂ (N, 6), τ_measured = drive gains × raw current.
 
-:class:`SetContext` holds one set's design matrix W (6N, p) and the derived signals the candidate
-columns use: τ̂, the link-side (rigid-body) part τ̂_link = τ̂ − friction, and the time derivatives
+:class:`SetContext` holds one set's baseline and the derived signals the candidate columns use
+(its design matrix W is streamed in chunks, never kept: τ̂, the link-side (rigid-body) part τ̂_link = τ̂ − friction, and the time derivatives
 dτ̂/dt, d²τ̂_link/dt² (taken per segment on the actual timestamps after a zero-phase low-pass).
 """
 
@@ -58,13 +58,40 @@ class SetContext:
     """One data set seen through the baseline model (see the module doc)."""
 
     data: GapSet
-    w: np.ndarray            # (6N, p) design matrix of the baseline model
+    w: np.ndarray | None     # (6N, p) design matrix held in memory, or None: streamed from spec, model
     tau_hat: np.ndarray      # (N, 6) baseline prediction
     tau_link: np.ndarray     # (N, 6) its rigid-body part
     dtau: np.ndarray         # (N, 6) dτ̂/dt
     ddtau_link: np.ndarray   # (N, 6) d²τ̂_link/dt²
     friction_eps: float
     cache: dict
+    spec: object = None      # the robot and the baseline IdentifiedModel whose design is streamed
+    model: object = None
+
+    @property
+    def n_params(self) -> int:
+        return self.w.shape[1] if self.w is not None else len(self.model.values)
+
+    def chunks(self, size: int | None = None):
+        """Yield ``(start, stop, blocks (m, 6, p))``: the design matrix's rows in chunks."""
+        from urident.ident.design import CHUNK_SAMPLES, design_chunks
+
+        size = size or CHUNK_SAMPLES
+        if self.w is not None:
+            w3 = self.w.reshape(-1, 6, self.w.shape[1])
+            for a in range(0, self.n, size):
+                yield a, min(a + size, self.n), w3[a:a + size]
+            return
+        p = self.data.prepared
+        # as urident.ident.predict_prepared: timestamps drive a velocity-driven friction state
+        yield from design_chunks(self.spec, self.model.model, p.q, p.qd, p.qdd, p.segment, p.t, size)
+
+    def design_product(self, g: np.ndarray) -> np.ndarray:
+        """(N, 6) W·g for parameter-space vector(s) ``g`` (p,)."""
+        out = np.empty((self.n, 6))
+        for a, b, blocks in self.chunks():
+            out[a:b] = blocks @ g
+        return out
 
     @property
     def n(self) -> int:
@@ -100,19 +127,19 @@ class SetContext:
 
 
 def make_context(spec, model, data: GapSet) -> SetContext:
-    """Design matrix and derived signals of ``data`` under the identified ``model``."""
-    from urident.ident.design import design_matrix
+    """Derived signals of ``data`` under the identified ``model`` (its design streamed in chunks)."""
     from urident.ident.identify import check_compatible
     from urident.model.parameters import is_friction
 
     check_compatible(model, spec)
     p = data.prepared
-    # as urident.ident.predict_prepared: timestamps drive a velocity-driven friction state
-    w = design_matrix(spec, model.model, p.q, p.qd, p.qdd, p.segment, p.t)
     values = np.asarray(model.values, float)
-    tau_hat = (w @ values).reshape(-1, 6)
     rigid = ~is_friction(model.kinds)      # the link side: rigid body and rotor inertia
-    tau_link = (w[:, rigid] @ values[rigid]).reshape(-1, 6)
-    dtau = smooth_derivative(tau_hat, p.t, p.segment, 1)
-    ddtau = smooth_derivative(tau_link, p.t, p.segment, 2)
-    return SetContext(data, w, tau_hat, tau_link, dtau, ddtau, float(model.model.friction_eps), {})
+    ctx = SetContext(data, None, np.empty((len(p), 6)), np.empty((len(p), 6)), None, None,
+                     float(model.model.friction_eps), {}, spec, model)
+    for a, b, blocks in ctx.chunks():
+        ctx.tau_hat[a:b] = blocks @ values
+        ctx.tau_link[a:b] = blocks[:, :, rigid] @ values[rigid]
+    ctx.dtau = smooth_derivative(ctx.tau_hat, p.t, p.segment, 1)
+    ctx.ddtau_link = smooth_derivative(ctx.tau_link, p.t, p.segment, 2)
+    return ctx

@@ -37,8 +37,20 @@ class Score:
     rms_before: np.ndarray
     rms_after: np.ndarray
     significant: bool
-    change: np.ndarray = field(repr=False)       # (N, 6) correction of the prediction
-    d: np.ndarray = field(repr=False)            # (N,) per-sample improvement
+    change: np.ndarray | None = field(default=None, repr=False)   # (N, 6) correction of the prediction
+    d: np.ndarray | None = field(default=None, repr=False)        # (N,) per-sample improvement
+    base: Fit | None = field(default=None, repr=False)            # the fit it was scored on top of
+    d_blocks: np.ndarray | None = field(default=None, repr=False)  # (M,) sums of d per bootstrap block
+    block_counts: np.ndarray | None = field(default=None, repr=False)
+    change_rms: np.ndarray | None = field(default=None, repr=False)   # (6,) RMS of ``change``
+
+    def materialize(self) -> "Score":
+        """Fill ``change`` and ``d`` (per sample) from the fits (only the scores reported need them)."""
+        if self.change is None and self.base is not None:
+            before, after = self.base.residual, self.fit.residual
+            self.change = before - after
+            self.d = np.sum(before ** 2 - after ** 2, axis=1)
+        return self
 
     @property
     def shrink_pct(self) -> float:

@@ -11,6 +11,11 @@ CV mode: the baseline (and the identification-mode candidates already fitted) st
 candidate's columns are fitted to the remaining validation residual on K − 1 contiguous time
 blocks and predict the held-out block; every validation sample gets an out-of-fold prediction.
 For use on other data the coefficients fitted on all validation samples are kept.
+
+No fit forms a (6N, ·) matrix: G, the Gram matrices of F and every validation residual's squared
+sums per bootstrap block and CV fold come from the statistics of :mod:`.stats`, built once per set
+of candidates (the diagnosis' pool); per-sample residuals are recomputed only when asked for
+(:attr:`Fit.residual`, :meth:`Fit.change`).
 """
 
 from __future__ import annotations
@@ -21,34 +26,64 @@ from typing import Sequence
 import numpy as np
 
 from urident.gap.candidates import Candidate
+from urident.gap.bootstrap import block_edges, default_block_length
 from urident.gap.residual import SetContext
+from urident.gap.stats import IdentStats, ValidStats, touched
 
 
 def lstsq(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Least squares through the (column-scaled) normal equations: x has few columns."""
-    gram = x.T @ x
-    scale = np.sqrt(np.diag(gram))
+    return lstsq_gram(x.T @ x, x.T @ y)
+
+
+def lstsq_gram(gram: np.ndarray, xty: np.ndarray) -> np.ndarray:
+    """:func:`lstsq` from the Gram matrix xᵀx and xᵀy."""
+    scale = np.sqrt(np.maximum(np.diag(gram), 0.0))
     ok = scale > 0
-    beta = np.zeros(x.shape[1])
+    beta = np.zeros(gram.shape[0])
     if ok.any():
         s = scale[ok]
         a = gram[np.ix_(ok, ok)] / np.outer(s, s)
-        b, *_ = np.linalg.lstsq(a, (x[:, ok].T @ y) / s, rcond=1e-10)
+        b, *_ = np.linalg.lstsq(a, xty[ok] / s, rcond=1e-10)
         beta[ok] = b / s
     return beta
+
+
+def _ss_after(gram: np.ndarray, xty: np.ndarray, yy: float) -> tuple[np.ndarray, float]:
+    """(β, ‖y − xβ‖²) of the least-squares fit from its Gram statistics."""
+    beta = lstsq_gram(gram, xty)
+    return beta, float(yy - 2.0 * beta @ xty + beta @ gram @ beta)
+
+
+class _Stats:
+    """Both sets' statistics for one set of candidates (see :mod:`.stats`)."""
+
+    def __init__(self, scorer: "Scorer", cands: Sequence[Candidate], block: int):
+        self.cands = list(dict.fromkeys(cands))
+        self.members = set(self.cands)
+        self.block = block
+        ident = [c for c in self.cands if c.mode == "ident"]
+        self.ident = IdentStats(scorer.ident, ident, scorer._w_factors) if ident else None
+        self.valid = ValidStats(scorer.valid, self.cands, bool(ident), scorer.fold,
+                                block_edges(scorer.valid.n, block))
 
 
 @dataclass(eq=False)
 class Fit:
     """A set of candidates fitted together; ``residual`` is the validation residual after them
-    (out-of-fold for the CV-mode ones)."""
+    (out-of-fold for the CV-mode ones), recomputed from the coefficients when first asked for.
+    ``u`` (S, D): per cell of ``stats`` the residual's coefficients on its columns."""
 
     ident: list[Candidate]
     beta_ident: np.ndarray
     cv: list[Candidate]
     beta_cv: np.ndarray                  # fitted on all validation samples
-    residual: np.ndarray                 # (N, 6)
     g: dict = field(default_factory=dict, repr=False)   # candidate → G (p, k)
+    stats: object = field(default=None, repr=False)
+    u: np.ndarray | None = field(default=None, repr=False)
+    beta_folds: np.ndarray | None = field(default=None, repr=False)   # (K, k_cv)
+    scorer: object = field(default=None, repr=False)
+    _residual: np.ndarray | None = field(default=None, repr=False)
 
     def coefficients(self) -> dict[Candidate, np.ndarray]:
         out, i = {}, 0
@@ -61,87 +96,164 @@ class Fit:
             i += c.k
         return out
 
+    def _ident_change(self, ctx: SetContext) -> np.ndarray:
+        out = np.zeros((ctx.n, 6))
+        if not self.ident:
+            return out
+        coef = self.coefficients()
+        g = sum(self.g[c] @ coef[c] for c in self.ident)
+        out -= ctx.design_product(g)
+        for c in self.ident:
+            out += c.features(ctx) @ coef[c]
+        return out
+
+    @property
+    def residual(self) -> np.ndarray:
+        """(N, 6) validation residual after the candidates."""
+        if self._residual is None:
+            v = self.scorer.valid
+            r = v.residual - self._ident_change(v)
+            if self.cv:
+                fold = self.scorer.fold
+                pred = np.zeros_like(r)
+                for c, sl in zip(self.cv, _slices(self.cv)):
+                    f = c.features(v)
+                    for b in range(self.scorer.n_folds):
+                        rows = fold == b
+                        pred[rows] += f[rows] @ self.beta_folds[b, sl]
+                r = r - pred
+            self._residual = r
+        return self._residual
+
     def change(self, ctx: SetContext) -> np.ndarray:
         """(N, 6) change of the predicted torque on another set ``ctx`` (same baseline)."""
-        out = np.zeros((ctx.n, 6))
+        out = self._ident_change(ctx)
         coef = self.coefficients()
-        for c in self.ident:
-            f = c.features(ctx).reshape(-1, c.k) - ctx.w @ self.g[c]
-            out += (f @ coef[c]).reshape(-1, 6)
         for c in self.cv:
-            out += (c.features(ctx).reshape(-1, c.k) @ coef[c]).reshape(-1, 6)
+            out += c.features(ctx) @ coef[c]
         return out
 
 
-class Scorer:
-    """Fits and scores candidates for one (identification, validation) pair."""
+def _slices(cands) -> list[slice]:
+    out, i = [], 0
+    for c in cands:
+        out.append(slice(i, i + c.k))
+        i += c.k
+    return out
 
-    def __init__(self, ident: SetContext, valid: SetContext, n_folds: int = 5):
+
+class Scorer:
+    """Fits and scores candidates for one (identification, validation) pair. ``block``: the
+    bootstrap block length the statistics are cut for (default about one second)."""
+
+    def __init__(self, ident: SetContext, valid: SetContext, n_folds: int = 5, block: int | None = None):
         self.ident, self.valid = ident, valid
-        scale = np.linalg.norm(ident.w, axis=0)
-        scale[scale == 0] = 1.0
-        self._scale = scale
-        self._q, self._r = np.linalg.qr(ident.w / scale)
-        self.r_ident = ident.residual.reshape(-1)
-        self.r_valid = valid.residual
         n = valid.n
         self.n_folds = int(max(2, min(n_folds, n // 20)))
         self.fold = np.minimum((np.arange(n) * self.n_folds) // n, self.n_folds - 1)
-        self._g: dict[Candidate, np.ndarray] = {}
+        self.block = block or default_block_length(n, valid.data.sample_rate)
+        self._w_factors: dict = {}        # per joint: R factor of [W_j | r_j] (identification)
+        self._stats: _Stats | None = None
+        self._gains: dict[Candidate, float] = {}
 
-    # ------------------------------------------------------------- identification mode
+    # ------------------------------------------------------------- statistics
+    def prepare(self, cands: Sequence[Candidate], block: int | None = None) -> None:
+        """Build the statistics of ``cands`` (the pool) once; later fits among them are cheap."""
+        self._stats = _Stats(self, cands, block or self.block)
+
+    def stats_for(self, cands: Sequence[Candidate], block: int | None = None, keep: bool = False) -> _Stats:
+        """Statistics covering ``cands``: the kept ones when they do, else new ones (kept as the
+        scorer's own with ``keep``: a pool about to be scored)."""
+        block = block or self.block
+        st = self._stats
+        if st is not None and st.block == block and all(c in st.members for c in cands):
+            return st
+        new = _Stats(self, cands, block)
+        if keep:
+            self._stats = new
+        return new
+
     def g(self, c: Candidate) -> np.ndarray:
-        if c not in self._g:
-            f = c.features(self.ident)                          # (N, 6, k)
-            rows = np.flatnonzero(np.any(f != 0, axis=(0, 2)))  # joints the columns touch
-            q3 = self._q.reshape(-1, 6, self._q.shape[1])
-            qtc = sum(q3[:, j, :].T @ f[:, j, :] for j in rows) if rows.size else \
-                np.zeros((self._q.shape[1], c.k))
-            self._g[c] = np.linalg.solve(self._r, qtc) / self._scale[:, None]
-        return self._g[c]
+        """G = W⁺C of an identification-mode candidate."""
+        st = self.stats_for([c])
+        return st.ident.g_of(c)
 
-    def f_ident(self, c: Candidate) -> np.ndarray:
-        key = ("f_ident", c)
-        if key not in self.ident.cache:
-            self.ident.cache[key] = c.features(self.ident).reshape(-1, c.k) - self.ident.w @ self.g(c)
-        return self.ident.cache[key]
+    def ident_ss(self, cands: Sequence[Candidate]) -> float:
+        """Squared identification residual after refitting identification-mode ``cands`` jointly."""
+        cands = [c for c in cands if c.mode == "ident"]
+        if not cands:
+            return float(np.sum(self.ident.residual ** 2))
+        st = self.stats_for(cands).ident
+        i = st.cols(cands)
+        return _ss_after(st.gram[np.ix_(i, i)], st.fty[i], st.yy)[1]
 
-    def f_valid(self, c: Candidate) -> np.ndarray:
-        key = ("f_valid", c)
-        if key not in self.valid.cache:
-            self.valid.cache[key] = c.features(self.valid).reshape(-1, c.k) - self.valid.w @ self.g(c)
-        return self.valid.cache[key]
+    # ------------------------------------------------------------- variant choice
+    def prepare_gains(self, families: Sequence[Sequence[Candidate]]) -> None:
+        """:meth:`training_gain` of every variant of ``families`` with more than one, the
+        identification-mode ones from one pass per joint."""
+        by_joint: dict = {}
+        for fam in families:
+            if len(fam) > 1:
+                for c in fam:
+                    if c.mode == "ident":
+                        by_joint.setdefault(c.joint, []).append(c)
+                    else:
+                        self._gains[c] = self._cv_gain(c)
+        for cands in by_joint.values():
+            st = IdentStats(self.ident, cands, self._w_factors)
+            for c in cands:
+                i = st.cols([c])
+                beta = lstsq_gram(st.gram[np.ix_(i, i)], st.fty[i])
+                self._gains[c] = float(2.0 * beta @ st.fty[i] - beta @ st.gram[np.ix_(i, i)] @ beta)
+
+    def _cv_gain(self, c: Candidate) -> float:
+        f = c.features(self.valid)
+        y = self.valid.residual
+        gram = np.zeros((c.k, c.k))
+        xty = np.zeros(c.k)
+        for j in touched(f):
+            gram += f[:, j, :].T @ f[:, j, :]
+            xty += f[:, j, :].T @ y[:, j]
+        beta = lstsq_gram(gram, xty)
+        return float(2.0 * beta @ xty - beta @ gram @ beta)
 
     def training_gain(self, c: Candidate) -> float:
         """Reduction of the fitting data's squared residual by ``c`` alone (choice of variant)."""
-        if c.mode == "ident":
-            f, y = self.f_ident(c), self.r_ident
-        else:
-            f, y = c.features(self.valid).reshape(-1, c.k), self.r_valid.reshape(-1)
-        beta = lstsq(f, y)
-        e = y - f @ beta
-        return float(y @ y - e @ e)
+        if c not in self._gains:
+            if c.mode == "ident":
+                st = IdentStats(self.ident, [c], self._w_factors)
+                beta = lstsq_gram(st.gram, st.fty)
+                self._gains[c] = float(2.0 * beta @ st.fty - beta @ st.gram @ beta)
+            else:
+                self._gains[c] = self._cv_gain(c)
+        return self._gains[c]
 
     # ------------------------------------------------------------- evaluation
-    def evaluate(self, selection: Sequence[Candidate]) -> Fit:
+    def evaluate(self, selection: Sequence[Candidate], stats: _Stats | None = None) -> Fit:
         ident = [c for c in selection if c.mode == "ident"]
         cv = [c for c in selection if c.mode == "cv"]
-        r = self.r_valid.copy()
+        st = stats if stats is not None else self.stats_for(list(selection))
+        vs = st.valid
+        u0 = vs.unit_residual()
         beta_i = np.zeros(0)
+        g = {}
         if ident:
-            f_id = np.hstack([self.f_ident(c) for c in ident])
-            beta_i = lstsq(f_id, self.r_ident)
-            f_va = np.hstack([self.f_valid(c) for c in ident])
-            r = r - (f_va @ beta_i).reshape(-1, 6)
+            i = st.ident.cols(ident)
+            beta_i = lstsq_gram(st.ident.gram[np.ix_(i, i)], st.ident.fty[i])
+            for c, sl in zip(ident, _slices(ident)):
+                g[c] = st.ident.g_of(c)
+                u0[vs.slices[c]] -= beta_i[sl]
+                u0[vs.w] += g[c] @ beta_i[sl]
+        u = np.tile(u0, (len(vs.cells) - 1, 1))
         beta_c = np.zeros(0)
+        folds = None
         if cv:
-            feats = np.concatenate([c.features(self.valid) for c in cv], axis=2)   # (N, 6, k)
-            k = feats.shape[2]
-            pred = np.zeros_like(r)
+            k = vs.cols(cv)
+            folds = np.zeros((self.n_folds, len(k)))
             for b in range(self.n_folds):
-                train = self.fold != b
-                beta_b = lstsq(feats[train].reshape(-1, k), r[train].reshape(-1))
-                pred[~train] = feats[~train] @ beta_b
-            beta_c = lstsq(feats.reshape(-1, k), r.reshape(-1))
-            r = r - pred
-        return Fit(ident, beta_i, cv, beta_c, r, {c: self.g(c) for c in ident})
+                train = vs.cell_fold != b
+                m = vs.m_cell[train].sum(axis=0)
+                folds[b] = lstsq_gram(m[np.ix_(k, k)], m[k] @ u0)
+                u[np.ix_(~train, k)] -= folds[b]
+            beta_c = lstsq_gram(vs.m_total[np.ix_(k, k)], vs.m_total[k] @ u0)
+        return Fit(ident, beta_i, cv, beta_c, g, st, u, folds, self)

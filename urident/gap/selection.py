@@ -20,12 +20,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from urident.gap.bootstrap import block_bootstrap_means, interval
+from urident.gap.bootstrap import block_bootstrap_means, bootstrap_block_sums, interval
 from urident.gap.candidates import Candidate
 from urident.gap.config import GapConfig
 from urident.gap.residual import SetContext
 from urident.gap.results import Finding, Score, rms
-from urident.gap.scoring import Fit, Scorer, lstsq
+from urident.gap.scoring import Fit, Scorer
 from urident.gap.significance import admissible, noise_sigma, score_all
 from urident.gap.where import finding_regime
 
@@ -73,7 +73,7 @@ def select(scorer: Scorer, pool: list[Candidate], block: int, config: GapConfig,
             best = simpler
             conf = confounded(best, scores, block, config)
         confounds += confound_rows(step, best, conf)
-        findings.append(make_finding(best, conf, ctx_v, spec, config))
+        findings.append(make_finding(best.materialize(), conf, ctx_v, spec, config))
         selected.append(best.candidate)
         current = best.fit
 
@@ -88,7 +88,7 @@ def select(scorer: Scorer, pool: list[Candidate], block: int, config: GapConfig,
                 s = next(x for x in scores if x.candidate is c)
                 conf = confounded(s, scores, block, config)
                 confounds += confound_rows(step, s, conf)
-                findings.append(make_finding(s, conf, ctx_v, spec, config))
+                findings.append(make_finding(s.materialize(), conf, ctx_v, spec, config))
                 current = s.fit
 
     return findings, steps, confounds, current
@@ -97,7 +97,7 @@ def select(scorer: Scorer, pool: list[Candidate], block: int, config: GapConfig,
 def confound_rows(step: int, chosen: Score, conf: list[Score]) -> list[dict]:
     """The report's rows for the candidates confounded with ``chosen`` at 0-based ``step``."""
     return [{"step": step + 1, "chosen": label(chosen), "alternative": label(other),
-             "correlation": float(corr(chosen.change, other.change)), "gain_nm2": [chosen.gain, other.gain]}
+             "correlation": float(score_corr(chosen, other)), "gain_nm2": [chosen.gain, other.gain]}
             for other in conf]
 
 
@@ -124,18 +124,13 @@ def ident_shortlist(scorer: Scorer, selected: list[Candidate], free: list[Candid
     """Identification-mode candidates whose in-sample reduction of the identification residual
     (jointly with the identification-mode effects already chosen) is at least
     ``shortlist_ratio`` of the best one's, at most ``shortlist_size`` of them."""
-    y = scorer.r_ident
     chosen = [c for c in selected if c.mode == "ident"]
-    f0 = np.hstack([scorer.f_ident(c) for c in chosen]) if chosen else np.zeros((len(y), 0))
-    e0 = y - f0 @ lstsq(f0, y) if chosen else y
-    ss0 = float(e0 @ e0)
+    ss0 = scorer.ident_ss(chosen)
     gains = []
     for c in free:
         if c.mode != "ident":
             continue
-        f = np.hstack([f0, scorer.f_ident(c)])
-        e = y - f @ lstsq(f, y)
-        gains.append((ss0 - float(e @ e), c))
+        gains.append((ss0 - scorer.ident_ss(chosen + [c]), c))
     if not gains:
         return []
     gains.sort(key=lambda g: -g[0])
@@ -160,8 +155,12 @@ def simplest_equivalent(best: Score, conf: list[Score], scores: list[Score], blo
             and s.candidate.k < best.candidate.k]
     if not alts:
         return best
-    diffs = np.stack([best.d - s.d for s in alts], axis=1)
-    boot = block_bootstrap_means(diffs, block, config.n_boot, config.seed)
+    if best.d_blocks is not None and all(s.d_blocks is not None for s in alts):
+        diffs = np.stack([best.d_blocks - s.d_blocks for s in alts], axis=1)   # block sums
+        boot = bootstrap_block_sums(diffs, best.block_counts, config.n_boot, config.seed)
+    else:
+        diffs = np.stack([best.d - s.d for s in alts], axis=1)
+        boot = block_bootstrap_means(diffs, block, config.n_boot, config.seed)
     equal = [s for i, s in enumerate(alts) if interval(boot[:, i], config.level)[0] <= 0
              or s.gain >= (1.0 - config.parsimony_tol) * best.gain]
     if not equal:
@@ -183,6 +182,21 @@ def corr(a: np.ndarray, b: np.ndarray) -> float:
     return float(a @ b / den) if den > 0 else 0.0
 
 
+def score_corr(a: Score, b: Score) -> float:
+    """:func:`corr` of two scores' corrections, from the scorer's statistics when both were
+    scored on the same ones (no per-sample series needed)."""
+    fa, fb = a.fit, b.fit
+    same = (fa is not None and fb is not None and a.base is not None and b.base is not None
+            and fa.stats is not None and fa.stats is fb.stats and a.base.stats is fa.stats
+            and b.base.stats is fa.stats)
+    if not same:
+        return corr(a.materialize().change, b.materialize().change)
+    vs = fa.stats.valid
+    da, db = a.base.u - fa.u, b.base.u - fb.u
+    den = np.sqrt(vs.cross(da, da) * vs.cross(db, db))
+    return float(vs.cross(da, db) / den) if den > 0 else 0.0
+
+
 def confounded(best: Score, scores: list[Score], block: int, config: GapConfig) -> list[Score]:
     """Candidates of another (effect, joint) whose correction is nearly the same as ``best``'s
     (uncentred correlation ≥ ``confound_corr``) and whose improvement interval overlaps
@@ -195,7 +209,7 @@ def confounded(best: Score, scores: list[Score], block: int, config: GapConfig) 
             continue
         if s.ci[1] < best.ci[0]:
             continue
-        if abs(corr(best.change, s.change)) < config.confound_corr:
+        if abs(score_corr(best, s)) < config.confound_corr:
             continue
         seen.add(key)
         out.append(s)

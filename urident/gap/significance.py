@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from urident.gap.bootstrap import block_bootstrap_means, interval
+from urident.gap.bootstrap import bootstrap_block_sums, interval
 from urident.gap.candidates import Candidate
 from urident.gap.config import GapConfig
 from urident.gap.results import Score, rms
@@ -23,27 +23,43 @@ from urident.gap.scoring import Fit, Scorer
 def score_all(scorer: Scorer, current: Fit, pool: list[Candidate], block: int,
               config: GapConfig) -> list[Score]:
     """Each candidate of ``pool`` added to ``current`` and scored on the held-out validation data
-    with its significance tests (module doc), best gain first."""
-    base = current.residual
-    sel = list(current.ident) + list(current.cv)
-    fits = [scorer.evaluate(sel + [c]) for c in pool]
-    if not fits:
+    with its significance tests (module doc), best gain first. Every sum over samples comes from
+    the scorer's per-cell statistics (:mod:`urident.gap.stats`): nothing per sample is kept."""
+    if not pool:
         return []
-    d = np.stack([np.sum(base ** 2 - f.residual ** 2, axis=1) for f in fits], axis=1)   # (N, m)
-    # the same improvement on the candidate's own joint (all-joint candidates: the total)
-    d_own = np.stack([base[:, c.joint] ** 2 - f.residual[:, c.joint] ** 2 if c.joint is not None
-                      else d[:, i] for i, (c, f) in enumerate(zip(pool, fits))], axis=1)
-    boot_all = block_bootstrap_means(np.hstack([d, d_own]), block, config.n_boot, config.seed)
+    sel = list(current.ident) + list(current.cv)
+    st = scorer.stats_for(sel + list(pool), block, keep=True)
+    base = current if current.stats is st else scorer.evaluate(sel, st)
+    if base._residual is None and current._residual is not None:
+        base._residual = current._residual
+    vs = st.valid
+    n = vs.n
+    ss0 = vs.cell_ss(base.u)                                   # (S, 6)
+    rms0 = np.sqrt(ss0.sum(axis=0) / n)
+    rms_tau = rms(scorer.valid.tau)
+    fits, d_cells, own_cells, rms1s, change_rms = [], [], [], [], []
+    for c in pool:
+        f = scorer.evaluate(sel + [c], st)
+        ss1 = vs.cell_ss(f.u)
+        d = (ss0 - ss1).sum(axis=1)
+        crms = np.sqrt(vs.cell_ss(base.u - f.u).sum(axis=0) / n)
+        fits.append(f)
+        d_cells.append(d)
+        # the same improvement on the candidate's own joint (all-joint candidates: the total)
+        own_cells.append(ss0[:, c.joint] - ss1[:, c.joint] if c.joint is not None else d)
+        rms1s.append(np.sqrt(np.maximum(ss1.sum(axis=0), 0.0) / n))
+        change_rms.append(crms)
+    sums = vs.block_sums(np.stack(d_cells + own_cells, axis=1))
+    boot_all = bootstrap_block_sums(sums, vs.block_counts, config.n_boot, config.seed)
     boot, boot_own = boot_all[:, :len(pool)], boot_all[:, len(pool):]
-    rms0 = rms(base)
     sigma = noise_sigma(scorer.valid.residual)
     out = []
     for i, (c, f) in enumerate(zip(pool, fits)):
-        rms1 = rms(f.residual)
-        joint = c.joint if c.joint is not None else main_joint(base - f.residual, scorer.valid.tau)
+        rms1 = rms1s[i]
+        joint = c.joint if c.joint is not None else _largest_share(change_rms[i], rms_tau)
         lo, hi = interval(boot[:, i], config.level)
-        s = Score(c, f, float(d[:, i].mean()), (lo, hi), joint, rms0, rms1, False,
-                  base - f.residual, d[:, i])
+        s = Score(c, f, float(d_cells[i].sum() / n), (lo, hi), joint, rms0, rms1, False,
+                  base=base, d_blocks=sums[:, i], block_counts=vs.block_counts, change_rms=change_rms[i])
         # own joint by default: a refit's collateral on the other joints can hide a clear gain on
         # the candidate's joint; the summed mean must still be > 0 (docs/gap-calibration.md)
         if config.test == "own":
@@ -52,8 +68,8 @@ def score_all(scorer: Scorer, current: Fit, pool: list[Candidate], block: int,
             held_out = lo > 0
         s.significant = bool(held_out and s.shrink_pct >= config.min_shrink_pct
                              and plausible(c, f.coefficients()[c])
-                             and (c.mode != "cv" or material_cv(s.change[:, joint], sigma[joint],
-                                                                config.cv_min_noise_ratio)))
+                             and (c.mode != "cv" or _material(float(change_rms[i][joint]), sigma[joint],
+                                                              config.cv_min_noise_ratio)))
         out.append(s)
     out.sort(key=lambda s: -s.gain)
     return out
@@ -94,10 +110,12 @@ def material_cv(change_j: np.ndarray, sigma_j: float, ratio: float) -> bool:
     differ), a few mA of apparent offset or friction that is real structure but no effect of the
     catalogue. Identification-mode candidates are fitted on other data and need no floor.
     The default 0.5 σ sits above what effect-free scenarios pass (docs/gap-calibration.md)."""
-    if ratio <= 0:
-        return True
-    crms = float(np.sqrt(np.mean(np.asarray(change_j, float) ** 2)))
-    return crms >= ratio * float(sigma_j)
+    return _material(float(np.sqrt(np.mean(np.asarray(change_j, float) ** 2))), sigma_j, ratio)
+
+
+def _material(crms: float, sigma_j: float, ratio: float) -> bool:
+    """:func:`material_cv` of a correction whose RMS on its joint is ``crms``."""
+    return ratio <= 0 or crms >= ratio * float(sigma_j)
 
 
 #: Payload findings need at least this fitted mass [kg] (a mass of ~0 with a few first-moment
@@ -125,6 +143,11 @@ def plausible(c: Candidate, beta: np.ndarray) -> bool:
 def shares(change: np.ndarray, tau: np.ndarray) -> np.ndarray:
     rms_tau = rms(tau)
     return rms(change) / np.where(rms_tau > 0, rms_tau, np.inf)
+
+
+def _largest_share(change_rms: np.ndarray, rms_tau: np.ndarray) -> int:
+    """:func:`main_joint` from the RMS of the change and of the measured torque per joint."""
+    return int(np.argmax(change_rms / np.where(rms_tau > 0, rms_tau, np.inf)))
 
 
 def main_joint(change: np.ndarray, tau: np.ndarray) -> int:

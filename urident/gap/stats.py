@@ -1,0 +1,171 @@
+"""The candidate fits' sufficient statistics, built in one pass over each set (bounded memory).
+
+Every fit the scorer makes is linear in a few columns per joint, so it needs no (6N, ·) matrix:
+
+* identification set (:class:`IdentStats`): per joint the R factor of [W_j | C_j | r_j] (baseline
+  design rows of joint j, the identification-mode candidates' columns there, the baseline
+  residual) by tall-skinny QR (:mod:`urident.ident.reduced`), merged over the joints into the R
+  factor of [W | C | r]. With R = [[R11, R12, R1r], [0, R22, R2r], [0, 0, ρ]]: G = W⁺C =
+  R11⁻¹R12, the projected columns F = C − W·G have Gram R22ᵀR22 and Fᵀr = R22ᵀR2r (Frisch–
+  Waugh–Lovell without forming Q or F);
+* validation set (:class:`ValidStats`): per *cell* (the intersection of a bootstrap block and a CV
+  fold) and joint the Gram matrix of [C' | W' | r0] (candidate columns, design rows, baseline
+  residual). A residual that is X·u on each cell has per-cell, per-joint squared sums uᵀMu: held-
+  out gains, their block bootstrap (block sums), RMS before and after, corrections' RMS and
+  correlations all follow from these (S, 6, D, D) numbers.
+
+Per-sample series (a finding's improvement map, the final residual) are recomputed on demand from
+the coefficients (:class:`urident.gap.scoring.Fit`), the candidate columns and the design rows
+streamed in chunks.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from urident.ident.reduced import _triangle
+
+
+def touched(f: np.ndarray) -> np.ndarray:
+    """0-based joints whose rows of candidate columns ``f`` (N, 6, k) are not all zero."""
+    return np.flatnonzero(np.any(f != 0, axis=(0, 2)))
+
+
+def _compact(cands, ctx, first_col: int = 0):
+    """Per joint: the candidate columns on its rows (N, K_j) and their global column indices;
+    ``slices``: each candidate's columns in the global layout starting at ``first_col``."""
+    parts = {j: [] for j in range(6)}
+    index = {j: [] for j in range(6)}
+    slices, col = {}, first_col
+    for c in cands:
+        f = c.features(ctx)
+        slices[c] = slice(col, col + c.k)
+        for j in touched(f):
+            parts[j].append(f[:, j, :])
+            index[j].append(np.arange(col, col + c.k))
+        col += c.k
+        del f
+    cols = {j: (np.hstack(parts[j]) if parts[j] else None) for j in range(6)}
+    idx = {j: (np.concatenate(index[j]) if index[j] else np.zeros(0, int)) for j in range(6)}
+    return cols, idx, slices, col
+
+
+class IdentStats:
+    """Identification-mode candidates ``cands`` on the identification set ``ctx`` (module doc)."""
+
+    def __init__(self, ctx, cands, w_factors: dict | None = None):
+        self.cands = list(cands)
+        r = ctx.residual
+        p = ctx.n_params
+        cols, idx, self.slices, end = _compact(self.cands, ctx, p)
+        k = end - p
+        factors = {}
+        have = w_factors if w_factors is not None else {}
+        for j in range(6):
+            if cols[j] is not None or j not in have:
+                factors[j] = np.zeros((0, p + (0 if cols[j] is None else cols[j].shape[1]) + 1))
+        if factors:
+            for a, b, blocks in ctx.chunks():
+                for j, fac in factors.items():
+                    parts = [blocks[:, j, :]] + ([] if cols[j] is None else [cols[j][a:b]]) + [r[a:b, j, None]]
+                    x = np.hstack(parts)
+                    factors[j] = _triangle(np.vstack([fac, x]), x.shape[1])
+        for j in range(6):
+            if cols[j] is None and j in factors:
+                have[j] = factors[j]          # baseline-only factor of this joint: reusable
+        total = p + k + 1
+        rows = []
+        for j in range(6):
+            fac = factors[j] if j in factors else have[j]
+            act = np.r_[np.arange(p), idx[j], total - 1]
+            e = np.zeros((fac.shape[0], total))
+            e[:, act] = fac
+            rows.append(e)
+        rr = _triangle(np.vstack(rows), total)
+        self.p, self.k = p, k
+        from scipy.linalg import solve_triangular
+
+        self.g = solve_triangular(rr[:p, :p], rr[:p, p:p + k]) if k else np.zeros((p, 0))
+        r22 = rr[p:p + k, p:p + k]
+        self.gram = r22.T @ r22
+        self.fty = r22.T @ rr[p:p + k, -1]
+        self.yy = float(np.sum(rr[:, -1] ** 2))
+
+    def cols(self, cands) -> np.ndarray:
+        """Indices of ``cands``' columns in :attr:`gram` (relative to the candidate block)."""
+        if not cands:
+            return np.zeros(0, int)
+        return np.concatenate([np.arange(self.slices[c].start, self.slices[c].stop) - self.p for c in cands])
+
+    def g_of(self, c) -> np.ndarray:
+        s = self.slices[c]
+        return self.g[:, s.start - self.p:s.stop - self.p]
+
+
+class ValidStats:
+    """Per-cell, per-joint Gram matrices of [C' | W' | r0] on the validation set (module doc).
+    ``cells``: sample edges; ``cell_fold``, ``cell_block``: each cell's CV fold and bootstrap
+    block; W' only when ``need_w`` (identification-mode candidates)."""
+
+    def __init__(self, ctx, cands, need_w: bool, fold: np.ndarray, block_edges: np.ndarray):
+        self.cands = list(cands)
+        n = ctx.n
+        fold_edges = np.r_[0, np.flatnonzero(np.diff(fold) != 0) + 1, n]
+        self.cells = np.unique(np.r_[fold_edges, block_edges]).astype(int)
+        self.cell_fold = fold[self.cells[:-1]]
+        self.cell_block = np.searchsorted(block_edges, self.cells[:-1], side="right") - 1
+        self.block_counts = np.diff(block_edges).astype(float)
+        self.n_blocks = len(block_edges) - 1
+        self.n = n
+        cols, idx, self.slices, end = _compact(self.cands, ctx, 0)
+        self.need_w = need_w
+        p = ctx.n_params if need_w else 0
+        self.w = slice(end, end + p)
+        self.r = end + p
+        d = end + p + 1
+        self.d = d
+        s_count = len(self.cells) - 1
+        m = np.zeros((s_count, 6, d, d))
+        r0 = ctx.residual
+        act = {j: np.r_[idx[j], np.arange(end, end + p), d - 1] for j in range(6)}
+        chunks = ctx.chunks() if need_w else ((a, min(a + 8192, n), None) for a in range(0, n, 8192))
+        for a, b, blocks in chunks:
+            first = int(np.searchsorted(self.cells, a, side="right") - 1)
+            s = first
+            while s < s_count and self.cells[s] < b:
+                lo, hi = max(a, self.cells[s]), min(b, self.cells[s + 1])
+                for j in range(6):
+                    parts = [] if cols[j] is None else [cols[j][lo:hi]]
+                    if need_w:
+                        parts.append(blocks[lo - a:hi - a, j, :])
+                    parts.append(r0[lo:hi, j, None])
+                    x = np.hstack(parts)
+                    m[s, j][np.ix_(act[j], act[j])] += x.T @ x
+                s += 1
+        self.m = m
+        self.m_cell = m.sum(axis=1)                  # (S, D, D) over joints
+        self.m_total = self.m_cell.sum(axis=0)       # (D, D)
+
+    def cols(self, cands) -> np.ndarray:
+        if not cands:
+            return np.zeros(0, int)
+        return np.concatenate([np.arange(self.slices[c].start, self.slices[c].stop) for c in cands])
+
+    def unit_residual(self) -> np.ndarray:
+        u = np.zeros(self.d)
+        u[self.r] = 1.0
+        return u
+
+    def cell_ss(self, u: np.ndarray) -> np.ndarray:
+        """(S, 6) Σ over each cell's samples of the squared series X·u (``u`` (S, D), per cell)."""
+        return np.einsum("sd,sjde,se->sj", u, self.m, u, optimize=True)
+
+    def cross(self, u: np.ndarray, v: np.ndarray) -> float:
+        """Σ over all samples and joints of (X·u)·(X·v)."""
+        return float(np.einsum("sd,sde,se->", u, self.m_cell, v, optimize=True))
+
+    def block_sums(self, x: np.ndarray) -> np.ndarray:
+        """(M, ...) sums over the bootstrap blocks of per-cell values ``x`` (S, ...)."""
+        out = np.zeros((self.n_blocks,) + x.shape[1:])
+        np.add.at(out, self.cell_block, x)
+        return out
