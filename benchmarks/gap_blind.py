@@ -58,6 +58,13 @@ Scores, per scenario with an effect:
   first design (unbounded point-to-point moves, 30 s runs: often one or two moves per run) it was
   10.96 points on seed 1; with bounded moves and 60 s runs 3.6-5.6 points (seeds 1-5).
 
+The prediction for another run (issue 21, item 3; :mod:`urident.gap.predict`) is scored beside
+it: the findings applied to the sealed run's motion alone (never its torque) give the
+*extrapolated* shrink. ``--other-duration S`` adds an "other" run (a random Fourier excitation of S
+seconds: longer, faster and more heavily loaded than the validation run) on which both predictions
+are scored the same way. The per-class table (``shrink_error_table``) prints, per effect class,
+the mean error of the validation figure and of the extrapolation on the sealed and the other run.
+
 Wrong findings are counted too: a finding whose (effect, joint) is not a true one, on scenarios
 whose effect does not matter (the right answer there is "nothing found") and on visible ones.
 
@@ -83,7 +90,7 @@ matter named on their joint), precision (findings naming a true effect on its jo
 where every effect that matters is named, the shrink error per named effect (its joint's
 predicted vs actual shrink) and per effect class. Printed for the single-effect mix too.
 
-Usage: ``python benchmarks/gap_blind.py [--scenarios 40] [--seed 1] [--rate 200] [--duration 60]
+Usage: ``python benchmarks/gap_blind.py [--scenarios 40] [--seed 1] [--robot ur10e] [--rate 200] [--duration 60] [--ident-duration S]
 [--effect-free | --multi] [--other-duration S] [--min-shrink PCT] [--first I] [--rows-out FILE] [--from-rows FILE …]``. ``--effect-free`` makes every scenario effect-free (a
 false-alarm scan); ``--min-shrink`` sets the diagnosis' materiality floor (to calibrate it). The
 last line printed is one JSON object.
@@ -335,7 +342,7 @@ def _strip(rec):
     return dataclasses.replace(plain, metadata={"rows": None})
 
 
-def simulate_runs(spec, sc: Scenario, rate: float, duration: float):
+def simulate_runs(spec, sc: Scenario, rate: float, duration: float, ident_duration: float | None = None):
     from urident.simcontroller.effects import parse_effects_text
     from urident.simcontroller.offline import simulate
 
@@ -344,7 +351,8 @@ def simulate_runs(spec, sc: Scenario, rate: float, duration: float):
     later = [t["entry"] for t in sc.truth]
     cfg_always = parse_effects_text(effects_text(always), "scenario")
     cfg_later = parse_effects_text(effects_text(later), "scenario")
-    ident = simulate(spec, random_fourier(rng, duration), rate, cfg_always, seed=int(rng.integers(1 << 31)))
+    ident = simulate(spec, random_fourier(rng, ident_duration or duration), rate, cfg_always,
+                     seed=int(rng.integers(1 << 31)))
     valid = simulate(spec, random_ptp(rng, duration), rate, cfg_later, seed=int(rng.integers(1 << 31)))
     sealed = simulate(spec, random_ptp(rng, duration), rate, cfg_later, seed=int(rng.integers(1 << 31)))
     return ident, valid, sealed
@@ -390,14 +398,14 @@ def _score_other(spec, res, cands, truth, other) -> list[dict]:
 
 
 def run_scenario(spec, sc: Scenario, rate: float = 200.0, duration: float = 60.0, config=None,
-                 other_duration: float = 0.0) -> dict:
+                 other_duration: float = 0.0, ident_duration: float | None = None) -> dict:
     from urident.gap import diagnose
     from urident.gap.data import build_set
     from urident.gap.predict import predict_shrink
     from urident.gap.residual import make_context
 
     start = time.perf_counter()
-    ident, valid, sealed = simulate_runs(spec, sc, rate, duration)
+    ident, valid, sealed = simulate_runs(spec, sc, rate, duration, ident_duration)
     other = simulate_other(spec, sc, rate, other_duration) if other_duration else None
     t0 = time.perf_counter()
     res = diagnose([_strip(ident)], [_strip(valid)], spec, config=config)   # recordings + robot only
@@ -655,6 +663,9 @@ def main(argv=None) -> int:
     ap.add_argument("--multi", action="store_true",
                     help="several effects at once: effect-free, 2 and 3 joint effects on distinct joints, "
                          "a payload with 2 joint effects (one kind in four each)")
+    ap.add_argument("--robot", default=ROBOT, help=f"robot file (default {ROBOT})")
+    ap.add_argument("--ident-duration", type=float, default=None, metavar="S",
+                    help="length of the identification run [s] (default: --duration)")
     ap.add_argument("--other-duration", type=float, default=0.0, metavar="S",
                     help="also score the shrink predictions on an 'other' run: a random Fourier excitation "
                          "of S seconds, unlike the validation run in duration and load (default 0: none)")
@@ -672,7 +683,7 @@ def main(argv=None) -> int:
     from urident.gap import GapConfig
     from urident.model import load_robot
 
-    spec = load_robot(ROBOT)
+    spec = load_robot(args.robot)
     config = GapConfig() if args.min_shrink is None else GapConfig(min_shrink_pct=args.min_shrink)
     rows = []
     t0 = time.perf_counter()
@@ -682,7 +693,7 @@ def main(argv=None) -> int:
     for i in range(args.first, args.first + args.scenarios) if not args.from_rows else ():
         kinds = ("none",) if args.effect_free else MULTI_KINDS if args.multi else None
         sc = draw_scenario(i, args.seed, kinds) if kinds else draw_scenario(i, args.seed)
-        row = run_scenario(spec, sc, args.rate, args.duration, config, args.other_duration)
+        row = run_scenario(spec, sc, args.rate, args.duration, config, args.other_duration, args.ident_duration)
         rows.append(row)
         if sink:
             sink.write(json.dumps(row) + "\n")
@@ -707,7 +718,8 @@ def main(argv=None) -> int:
           f"(calibrated on effect-free scenarios only)")
     summary.update(min_shrink_pct=cfg.min_shrink_pct, cv_min_noise_ratio=cfg.cv_min_noise_ratio)
     summary["per_finding"] = summarise_findings(rows)
-    summary.update(seed=args.seed, rate_hz=args.rate, duration_s=args.duration, other_duration_s=args.other_duration,
+    summary.update(seed=args.seed, robot=args.robot, rate_hz=args.rate, duration_s=args.duration,
+                   ident_duration_s=args.ident_duration or args.duration, other_duration_s=args.other_duration,
                    effect_free_only=args.effect_free,
                    multi=args.multi, wall_s=time.perf_counter() - t0,
                    mean_scenario_s=float(np.mean([r["scenario_s"] for r in rows])) if rows else None)
