@@ -58,6 +58,13 @@ Scores, per scenario with an effect:
   first design (unbounded point-to-point moves, 30 s runs: often one or two moves per run) it was
   10.96 points on seed 1; with bounded moves and 60 s runs 3.6-5.6 points (seeds 1-5).
 
+The prediction for another run (issue 21, item 3; :mod:`urident.gap.predict`) is scored beside
+it: the findings applied to the sealed run's motion alone (never its torque) give the
+*extrapolated* shrink. ``--other-duration S`` adds an "other" run (a random Fourier excitation of S
+seconds: longer, faster and more heavily loaded than the validation run) on which both predictions
+are scored the same way. The per-class table (``shrink_error_table``) prints, per effect class,
+the mean error of the validation figure and of the extrapolation on the sealed and the other run.
+
 Wrong findings are counted too: a finding whose (effect, joint) is not a true one, on scenarios
 whose effect does not matter (the right answer there is "nothing found") and on visible ones.
 
@@ -83,8 +90,8 @@ matter named on their joint), precision (findings naming a true effect on its jo
 where every effect that matters is named, the shrink error per named effect (its joint's
 predicted vs actual shrink) and per effect class. Printed for the single-effect mix too.
 
-Usage: ``python benchmarks/gap_blind.py [--scenarios 40] [--seed 1] [--rate 200] [--duration 60]
-[--effect-free | --multi] [--min-shrink PCT] [--first I] [--rows-out FILE] [--from-rows FILE …]``. ``--effect-free`` makes every scenario effect-free (a
+Usage: ``python benchmarks/gap_blind.py [--scenarios 40] [--seed 1] [--robot ur10e] [--rate 200] [--duration 60] [--ident-duration S]
+[--effect-free | --multi] [--other-duration S] [--min-shrink PCT] [--first I] [--rows-out FILE] [--from-rows FILE …]``. ``--effect-free`` makes every scenario effect-free (a
 false-alarm scan); ``--min-shrink`` sets the diagnosis' materiality floor (to calibrate it). The
 last line printed is one JSON object.
 """
@@ -335,7 +342,7 @@ def _strip(rec):
     return dataclasses.replace(plain, metadata={"rows": None})
 
 
-def simulate_runs(spec, sc: Scenario, rate: float, duration: float):
+def simulate_runs(spec, sc: Scenario, rate: float, duration: float, ident_duration: float | None = None):
     from urident.simcontroller.effects import parse_effects_text
     from urident.simcontroller.offline import simulate
 
@@ -344,19 +351,62 @@ def simulate_runs(spec, sc: Scenario, rate: float, duration: float):
     later = [t["entry"] for t in sc.truth]
     cfg_always = parse_effects_text(effects_text(always), "scenario")
     cfg_later = parse_effects_text(effects_text(later), "scenario")
-    ident = simulate(spec, random_fourier(rng, duration), rate, cfg_always, seed=int(rng.integers(1 << 31)))
+    ident = simulate(spec, random_fourier(rng, ident_duration or duration), rate, cfg_always,
+                     seed=int(rng.integers(1 << 31)))
     valid = simulate(spec, random_ptp(rng, duration), rate, cfg_later, seed=int(rng.integers(1 << 31)))
     sealed = simulate(spec, random_ptp(rng, duration), rate, cfg_later, seed=int(rng.integers(1 << 31)))
     return ident, valid, sealed
 
 
-def run_scenario(spec, sc: Scenario, rate: float = 200.0, duration: float = 60.0, config=None) -> dict:
+def simulate_other(spec, sc: Scenario, rate: float, duration: float):
+    """The "other" run (``--other-duration``): a random Fourier excitation of ``duration`` s with
+    the validation run's effects, unlike the validation run in duration, speed and load (no
+    dwells, faster, larger inertial torques), so effects that grow with time or load do more."""
+    from urident.simcontroller.effects import parse_effects_text
+    from urident.simcontroller.offline import simulate
+
+    rng = np.random.default_rng([sc.seed, sc.index, 8])   # its own stream: the other runs unchanged
+    cfg = parse_effects_text(effects_text([t["entry"] for t in sc.truth]), "scenario")
+    return simulate(spec, random_fourier(rng, duration), rate, cfg, seed=int(rng.integers(1 << 31)))
+
+
+def _score_other(spec, res, cands, truth, other) -> list[dict]:
+    """Per true effect on the other run: actual shrink of its joint (true structure fitted on the
+    diagnosis' data, as for the sealed run), its own share (leave-one-out), the validation-based
+    and the extrapolated predictions."""
+    from urident.gap.data import build_set
+    from urident.gap.predict import predict_shrink
+    from urident.gap.residual import make_context
+
+    ctx = make_context(spec, res.model, build_set([_strip(other)], spec))
+    rms = lambda r: np.sqrt(np.mean(r ** 2, axis=0))   # noqa: E731
+    r0 = ctx.residual
+    r1 = r0 - res.correction(cands).change(ctx) if cands else r0
+    extrapolated = predict_shrink(res, spec, ctx)
+    out = []
+    for k, (e, j) in enumerate(truth):
+        others = [c for i, c in enumerate(cands) if i != k]
+        r_loo = r0 - res.correction(others).change(ctx) if others else r0
+        actual = 100 * (1 - rms(r1)[j] / rms(r0)[j])
+        predicted = 100 * (1 - res.final_rms[j] / res.baseline_rms[j]) if res.findings else 0.0
+        out.append({"effect": e, "joint": j + 1, "actual_shrink_pct": float(actual),
+                    "own_actual_shrink_pct": float(100 * (1 - rms(r1)[j] / rms(r_loo)[j])),
+                    "error_pts": float(abs(predicted - actual)),
+                    "extrapolated_shrink_pct": float(extrapolated[j]),
+                    "extrapolated_error_pts": float(abs(extrapolated[j] - actual))})
+    return out
+
+
+def run_scenario(spec, sc: Scenario, rate: float = 200.0, duration: float = 60.0, config=None,
+                 other_duration: float = 0.0, ident_duration: float | None = None) -> dict:
     from urident.gap import diagnose
     from urident.gap.data import build_set
+    from urident.gap.predict import predict_shrink
     from urident.gap.residual import make_context
 
     start = time.perf_counter()
-    ident, valid, sealed = simulate_runs(spec, sc, rate, duration)
+    ident, valid, sealed = simulate_runs(spec, sc, rate, duration, ident_duration)
+    other = simulate_other(spec, sc, rate, other_duration) if other_duration else None
     t0 = time.perf_counter()
     res = diagnose([_strip(ident)], [_strip(valid)], spec, config=config)   # recordings + robot only
     wall = time.perf_counter() - t0
@@ -396,6 +446,8 @@ def run_scenario(spec, sc: Scenario, rate: float = 200.0, duration: float = 60.0
     r1 = r0 - true_fit.change(ctx_s) if cands else r0
     rms0, rms1 = np.sqrt(np.mean(r0 ** 2, axis=0)), np.sqrt(np.mean(r1 ** 2, axis=0))
     rms_true_valid = np.sqrt(np.mean(true_fit.residual ** 2, axis=0))
+    # the diagnosis' prediction for the sealed run from its motion alone (urident.gap.predict)
+    extrapolated = predict_shrink(res, spec, ctx_s)
     errs = []
     for e, j in truth:
         actual = 100 * (1 - rms1[j] / rms0[j])
@@ -404,9 +456,13 @@ def run_scenario(spec, sc: Scenario, rate: float = 200.0, duration: float = 60.0
         oracle = 100 * (1 - rms_true_valid[j] / res.baseline_rms[j])
         errs.append({"effect": e, "joint": j + 1, "predicted_shrink_pct": float(predicted),
                      "actual_shrink_pct": float(actual), "error_pts": float(abs(predicted - actual)),
+                     "extrapolated_shrink_pct": float(extrapolated[j]),
+                     "extrapolated_error_pts": float(abs(extrapolated[j] - actual)),
                      "oracle_valid_shrink_pct": float(oracle),
                      "oracle_error_pts": float(abs(oracle - actual))})
     out["shrink"] = errs
+    if other is not None:
+        out["other"] = _score_other(spec, res, cands, truth, other)
     # per effect (several at once): what it explains on top of the other true effects (sealed
     # run, leave-one-out), whether a finding names it on its joint, and per finding whether true
     for k, (t, (e, j)) in enumerate(zip(sc.truth, truth)):
@@ -500,7 +556,38 @@ def summarise_findings(rows: list[dict]) -> dict:
         "scenarios_by_effect_count": {k: len(v) for k, v in sorted(by_count.items())},
         # per effect class: [mean |predicted - actual| over its named effects that matter, count]
         "shrink_error_by_effect": {e: [float(np.mean(v)), len(v)] for e, v in sorted(_by_effect(vis).items())},
+        "shrink_error_table": shrink_error_table(eff),
     }
+
+
+def shrink_error_table(eff: list[dict]) -> dict:
+    """Per effect class, mean |predicted − actual shrink| [points] over its named effects that
+    matter: the validation shrink as the prediction (``validation``, what the report prints) and
+    the extrapolation to the run's motion (``extrapolated``, :mod:`urident.gap.predict`), on the
+    sealed run and (``--other-duration``) on the other run; with the counts."""
+    table: dict = {}
+    for r in eff:
+        for k, s in enumerate(r["shrink"]):
+            row = table.setdefault(s["effect"], {"sealed_n": 0, "sealed_validation_pts": [],
+                                                 "sealed_extrapolated_pts": [], "other_n": 0,
+                                                 "other_validation_pts": [], "other_extrapolated_pts": []})
+            if s["visible"] and s["named"]:
+                row["sealed_validation_pts"].append(s["error_pts"])
+                row["sealed_extrapolated_pts"].append(s["extrapolated_error_pts"])
+            o = r.get("other", [None] * len(r["shrink"]))[k]
+            if o is not None and s["named"] and o["own_actual_shrink_pct"] >= VISIBLE_PCT:
+                row["other_validation_pts"].append(o["error_pts"])
+                row["other_extrapolated_pts"].append(o["extrapolated_error_pts"])
+    out = {}
+    for e, row in sorted(table.items()):
+        mean = lambda v: float(np.mean(v)) if v else None   # noqa: E731
+        out[e] = {"sealed_n": len(row["sealed_validation_pts"]),
+                  "sealed_validation_pts": mean(row["sealed_validation_pts"]),
+                  "sealed_extrapolated_pts": mean(row["sealed_extrapolated_pts"]),
+                  "other_n": len(row["other_validation_pts"]),
+                  "other_validation_pts": mean(row["other_validation_pts"]),
+                  "other_extrapolated_pts": mean(row["other_extrapolated_pts"])}
+    return out
 
 
 def _by_effect(effects: list[dict]) -> dict:
@@ -524,6 +611,15 @@ def _print_findings(m: dict) -> None:
           f"{m['scenarios_by_effect_count']}")
     print("shrink error per effect class (mean points, named effects that matter): " +
           ", ".join(f"{e} {v:.1f} ({n})" for e, (v, n) in m["shrink_error_by_effect"].items()))
+    fmt = lambda x: "    -" if x is None else f"{x:5.1f}"   # noqa: E731
+    print("shrink error per effect class [points], prediction from the validation shrink vs extrapolated "
+          "to the run's motion (urident.gap.predict):")
+    print(f"  {'effect':22s} {'sealed n':>8s} {'valid.':>6s} {'extrap.':>7s}   {'other n':>7s} {'valid.':>6s} "
+          f"{'extrap.':>7s}")
+    for e, r in m["shrink_error_table"].items():
+        print(f"  {e:22s} {r['sealed_n']:8d} {fmt(r['sealed_validation_pts']):>6s} "
+              f"{fmt(r['sealed_extrapolated_pts']):>7s}   {r['other_n']:7d} {fmt(r['other_validation_pts']):>6s} "
+              f"{fmt(r['other_extrapolated_pts']):>7s}")
 
 
 def _print_summary(summary: dict) -> None:
@@ -567,6 +663,12 @@ def main(argv=None) -> int:
     ap.add_argument("--multi", action="store_true",
                     help="several effects at once: effect-free, 2 and 3 joint effects on distinct joints, "
                          "a payload with 2 joint effects (one kind in four each)")
+    ap.add_argument("--robot", default=ROBOT, help=f"robot file (default {ROBOT})")
+    ap.add_argument("--ident-duration", type=float, default=None, metavar="S",
+                    help="length of the identification run [s] (default: --duration)")
+    ap.add_argument("--other-duration", type=float, default=0.0, metavar="S",
+                    help="also score the shrink predictions on an 'other' run: a random Fourier excitation "
+                         "of S seconds, unlike the validation run in duration and load (default 0: none)")
     ap.add_argument("--min-shrink", type=float, default=None, metavar="PCT",
                     help="the diagnosis' materiality floor (GapConfig.min_shrink_pct; default its default)")
     ap.add_argument("--first", type=int, default=0, metavar="I",
@@ -581,7 +683,7 @@ def main(argv=None) -> int:
     from urident.gap import GapConfig
     from urident.model import load_robot
 
-    spec = load_robot(ROBOT)
+    spec = load_robot(args.robot)
     config = GapConfig() if args.min_shrink is None else GapConfig(min_shrink_pct=args.min_shrink)
     rows = []
     t0 = time.perf_counter()
@@ -591,7 +693,7 @@ def main(argv=None) -> int:
     for i in range(args.first, args.first + args.scenarios) if not args.from_rows else ():
         kinds = ("none",) if args.effect_free else MULTI_KINDS if args.multi else None
         sc = draw_scenario(i, args.seed, kinds) if kinds else draw_scenario(i, args.seed)
-        row = run_scenario(spec, sc, args.rate, args.duration, config)
+        row = run_scenario(spec, sc, args.rate, args.duration, config, args.other_duration, args.ident_duration)
         rows.append(row)
         if sink:
             sink.write(json.dumps(row) + "\n")
@@ -616,7 +718,9 @@ def main(argv=None) -> int:
           f"(calibrated on effect-free scenarios only)")
     summary.update(min_shrink_pct=cfg.min_shrink_pct, cv_min_noise_ratio=cfg.cv_min_noise_ratio)
     summary["per_finding"] = summarise_findings(rows)
-    summary.update(seed=args.seed, rate_hz=args.rate, duration_s=args.duration, effect_free_only=args.effect_free,
+    summary.update(seed=args.seed, robot=args.robot, rate_hz=args.rate, duration_s=args.duration,
+                   ident_duration_s=args.ident_duration or args.duration, other_duration_s=args.other_duration,
+                   effect_free_only=args.effect_free,
                    multi=args.multi, wall_s=time.perf_counter() - t0,
                    mean_scenario_s=float(np.mean([r["scenario_s"] for r in rows])) if rows else None)
     _print_summary(summary)

@@ -99,11 +99,15 @@ def test_check_scores_each_finding_on_held_out_logs(logs, check_logs, tmp_path, 
     lo, hi = row["checked_shrink_ci95_pct"]
     assert 0 < lo <= row["checked_shrink_pct"] <= hi
     assert row["predicted_shrink_ci95_pct"][0] > 0
+    # the prediction for the check log's motion (the offset is there too) lies in the checked interval
+    assert lo <= row["extrapolated_shrink_pct"] <= hi
     assert main(base + ["--check", str(check_logs[1]), "--json-out", str(out), "--overwrite"]) == 0
     text = capsys.readouterr().out
     assert "DOES NOT HOLD on the check logs" in text
     row = json.loads(out.read_text())["check"]["findings"][0]
     assert row["holds"] is False and row["checked_shrink_ci95_pct"][0] <= 0
+    # from the motion alone the offset would still help: only the check logs' torque shows it gone
+    assert row["extrapolated_shrink_pct"] > 0
 
 
 def test_check_log_reused_for_selection_is_refused(logs, capsys):

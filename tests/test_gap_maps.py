@@ -77,10 +77,11 @@ def test_block_bootstrap_interval_covers_the_mean_and_widens_with_correlation(rn
 
 
 def test_effect_names_are_the_catalogue_s():
-    from urident.gap.candidates import EFFECTS
+    from urident.gap.candidates import DIAGNOSIS_ONLY, EFFECTS
     from urident.simcontroller.effects import EFFECT_NAMES
 
-    assert EFFECTS is EFFECT_NAMES
+    assert EFFECTS == EFFECT_NAMES + DIAGNOSIS_ONLY
+    assert not set(DIAGNOSIS_ONLY) & set(EFFECT_NAMES)
 
 
 def test_implausible_fits_are_not_findings():

@@ -26,11 +26,18 @@ current_offset         1 (coefficient the offset in N·m)
 payload_error          all joints: the torque of 1 kg at the tool point, and the three first-moment
                        columns m·ρ of body 6 (mass and centre-of-mass shift)
 joint_elasticity       d²τ̂_link,j/dt² (coefficient −J/k)
+presliding             z_j − s, z the normalised Dahl state driven by the integrated velocity
+                       (presliding distance δ on a grid): holding friction that keeps the sign
+                       and size of the motion before a stop, where tanh(q̇/ε) falls to 0
 =====================  =============================================================================
+
+``presliding`` is a diagnosis-only candidate: the simulator's catalogue has no such effect, and no
+simulator model format can express it (``urident.gap.sim_baseline.EXPRESSIBLE`` lacks it).
 """
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -40,8 +47,10 @@ from urident.gap.residual import SetContext
 from urident.ident import features
 from urident.simcontroller.effects.catalogue import EFFECT_NAMES
 
-#: The catalogue's names, in its order (the catalogue's own tuple, not a copy).
-EFFECTS = EFFECT_NAMES
+#: Candidates with no simulator effect behind them (what real arms show beyond the catalogue).
+DIAGNOSIS_ONLY = ("presliding",)
+#: The catalogue's names, in its order, then the diagnosis-only candidates.
+EFFECTS = EFFECT_NAMES + DIAGNOSIS_ONLY
 #: Effects that may differ between runs (friction of the day, warm-up, a sensor offset, a payload
 #: added later): also fitted by blocked CV inside the validation logs.
 CV_EFFECTS = ("stribeck", "load_friction", "thermal_drift", "current_offset", "payload_error")
@@ -54,6 +63,9 @@ STRIBECK_VS = (0.005, 0.01, 0.02, 0.04, 0.08)   # [rad/s]
 #: (also tried) fits only the slow end of that range.
 WARMUP_TAUS_S = (15.0, 30.0, 60.0, 120.0)
 LOW_HARMONICS = (2, 3, 4)    # position_ripple: always tried (k = 1 is a gravity-like term)
+#: presliding: Dahl presliding distances [rad]; the UR10e pair's joints pick 0.1-0.3 mrad
+#: (benchmarks/gap_presliding.py), the grid spans a decade either side.
+PRESLIDING_DELTAS = (1e-4, 3e-4, 1e-3, 3e-3, 1e-2)
 
 
 @dataclass(eq=False)
@@ -113,6 +125,8 @@ class Candidate:
         elif e == "payload_error":
             m = float(b[0])
             out.update(mass_kg=m, first_moment_kg_m=[float(x) for x in b[1:4]])
+        elif e == "presliding":
+            out.update(holding_friction_nm=float(b[0]), presliding_distance_rad=self.settings["delta"])
         elif e == "joint_elasticity":
             out.update(inertia_over_stiffness_s2=float(-b[0]))
             if b[0] < 0:
@@ -205,6 +219,29 @@ def joint_elasticity(j: int, mode: str = "ident") -> Candidate:
                      lambda ctx: _on_joint(ctx, j, [ctx.ddtau_link[:, j]]))
 
 
+#: One Dahl state per (data set, δ) for all joints: six joints' candidates share it.
+_DAHL: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def _dahl(data, delta: float) -> np.ndarray:
+    from urident.ident.friction import dahl_state, velocity_displacement
+
+    per_set = _DAHL.setdefault(data, {})
+    if delta not in per_set:
+        p = data.prepared
+        per_set[delta] = dahl_state(velocity_displacement(p.t, p.qd, p.segment), delta, p.segment)
+    return per_set[delta]
+
+
+def presliding(j: int, delta: float, mode: str = "ident") -> Candidate:
+    def build(ctx):
+        # z − tanh: the Dahl state minus the baseline's own Coulomb state (the difference is
+        # what the baseline lacks: friction held at standstill and the presliding transition)
+        return _on_joint(ctx, j, [_dahl(ctx.data, delta)[:, j] - ctx.sign()[:, j]])
+    return Candidate("presliding", j, f"Dahl delta={delta:g} rad", mode, ("z-tanh(qd/eps)",), build,
+                     {"delta": float(delta)})
+
+
 def payload_error(spec, mode: str = "cv") -> Candidate:
     from urident.model import regressor_blocks
 
@@ -258,6 +295,8 @@ def families(spec, ident: SetContext, valid: SetContext, effects=EFFECTS, ripple
                     fam = [current_offset(j, mode)]
                 elif e == "joint_elasticity":
                     fam = [joint_elasticity(j, mode)]
+                elif e == "presliding":
+                    fam = [presliding(j, d, mode) for d in PRESLIDING_DELTAS]
                 else:
                     raise ValueError(f"unknown effect {e!r}")
                 if fam:

@@ -8,7 +8,9 @@ same figure on the check logs, with every chosen effect fitted as the diagnosis 
 on all validation samples) and applied unchanged. Both get a 95 % block-bootstrap interval
 (blocks of ~1 s, the squared residuals before and after resampled together). A finding *holds*
 when its checked interval lies above 0: on the check logs it still makes its joint's residual
-smaller.
+smaller. Beside the predicted figure, the one extrapolated to the check logs' motion
+(:mod:`urident.gap.predict`: the finding's correction there, from their motion alone, against what
+the findings leave), which the checked figure tests.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ import numpy as np
 from urident.gap.bootstrap import block_bootstrap_means, default_block_length, interval
 from urident.gap.candidates import Candidate
 from urident.gap.data import build_set
+from urident.gap.predict import extrapolated_shrink_pct, remaining_rms
 from urident.gap.residual import make_context
 
 
@@ -34,10 +37,12 @@ class CheckRow:
     checked_pct: float
     checked_ci: tuple[float, float]
     holds: bool
+    extrapolated_pct: float = float("nan")   # predicted for the check logs' motion (urident.gap.predict)
 
     def as_dict(self) -> dict:
         return {"effect": self.effect, "joint": self.joint, "predicted_shrink_pct": self.predicted_pct,
-                "predicted_shrink_ci95_pct": list(self.predicted_ci), "checked_shrink_pct": self.checked_pct,
+                "predicted_shrink_ci95_pct": list(self.predicted_ci),
+                "extrapolated_shrink_pct": self.extrapolated_pct, "checked_shrink_pct": self.checked_pct,
                 "checked_shrink_ci95_pct": list(self.checked_ci), "holds": self.holds}
 
 
@@ -94,19 +99,27 @@ def check_findings(res, check_recordings: Sequence, spec, *, drive_gains=None, p
                                        cfg.n_boot, cfg.seed, cfg.level)
         r_oth = r0 - others.change(ctx)
         s, s_ci = shrink_with_interval(r_oth[:, j], r_all[:, j], block_c, cfg.n_boot, cfg.seed, cfg.level)
-        rows.append(CheckRow(k, f.effect, f.joint, p, p_ci, s, s_ci, bool(s_ci[0] > 0)))
-    rms = lambda r: np.sqrt(np.mean(r ** 2, axis=0))   # noqa: E731
-    return CheckResult(ctx.n, rows, rms(r0), rms(r_all))
+        # the finding's own correction on the check logs' motion, against what the findings leave
+        c_valid = _rms(others.residual - res.fit.residual)
+        c_check = _rms(r_oth - r_all)
+        e = extrapolated_shrink_pct(remaining_rms(res.fit, c_valid, c_check), c_check)[j]
+        rows.append(CheckRow(k, f.effect, f.joint, p, p_ci, s, s_ci, bool(s_ci[0] > 0), float(e)))
+    return CheckResult(ctx.n, rows, _rms(r0), _rms(r_all))
+
+
+def _rms(r: np.ndarray) -> np.ndarray:
+    return np.sqrt(np.mean(r ** 2, axis=0))
 
 
 def format_check(chk: CheckResult) -> str:
     lines = [f"Check (held-out logs, {chk.n_samples} samples; shrink of the finding's joint on top of the "
              "other findings, 95 % interval):",
-             "  finding                          joint   predicted (validation)       checked            "]
+             "  finding                          joint   predicted (validation)    for their motion   checked"]
     for r in chk.rows:
         verdict = "holds" if r.holds else "DOES NOT HOLD on the check logs"
         lines.append(f"  {r.finding + 1}. {r.effect:28s} {r.joint:3d}   {r.predicted_pct:5.1f} % "
-                     f"[{r.predicted_ci[0]:5.1f}, {r.predicted_ci[1]:5.1f}]   {r.checked_pct:5.1f} % "
+                     f"[{r.predicted_ci[0]:5.1f}, {r.predicted_ci[1]:5.1f}]   {r.extrapolated_pct:5.1f} %"
+                     f"            {r.checked_pct:5.1f} % "
                      f"[{r.checked_ci[0]:5.1f}, {r.checked_ci[1]:5.1f}]  {verdict}")
     b, f = chk.baseline_rms, chk.final_rms
     lines.append("  joint RMS on the check logs [Nm], baseline -> with every finding: " +
