@@ -2,17 +2,20 @@
 
 One rule everywhere (the session recorder, the loaders, every consumer). A log's timestamps are a
 uniform grid of nominal period T plus jitter (controller timestamps: none; a bag's header.stamp:
-the ros2_control loop's wake-up latency, which its absolute schedule catches up; DDS batching of
-receive times). Write r_k = (t_k − t_0)/T − k, the periods sample k runs ahead of the grid: jitter
-moves r up and back, a lost sample steps it up by one for good. So an interval longer than
-:data:`GAP_FACTOR`·T is only a candidate; it is a gap of ``m`` missing periods when the median of
-r over the samples after it exceeds the median over the samples before it by ``m`` (rounded,
-≥ 1, at most what the interval leaves room for). A late sample followed by short intervals, or a
-stall the loop catches up, is jitter, not a gap. Candidates closer than :data:`MIN_PIECE` samples
-are judged together, as one gap at their longest interval. With exact timestamps this is the
-plain rule: missing = rounded spacing − 1 (:func:`missing_periods`, the recorder's online count).
-The nominal period is the log's rate (sidecar) or, for a log without one, the median spacing
-over :data:`SPAN` samples (robust to gaps and to bursts of bunched stamps).
+the ros2_control loop's wake-up latency, whose absolute schedule then catches up with cycles run
+at once; DDS batching of receive times). Write r_k = (t_k − t_0)/T − k, the periods sample k runs
+ahead of the grid: jitter moves r up and back, a lost sample steps it up by one for good. So an
+interval longer than :data:`GAP_FACTOR`·T is only a candidate. The samples after it that follow
+at less than :data:`CATCH_UP`·T are the catch-up; where they end the timing has settled. The
+candidate is a gap of ``m`` missing periods when the median of r over :data:`LEVEL_WINDOW`
+settled samples after it exceeds the median over those before it by ``m`` (rounded, ≥ 1, at most
+what the stretch leaves room for). A late sample followed by a short interval, or a stall the
+loop catches up, is jitter, not a gap. Candidates closer than :data:`MIN_PIECE` settled samples
+are judged as one; when that stretch (or a caught-up stall) hides a loss, its samples are left out
+of the gap-free pieces (``Gap.resume``), since the loss may lie anywhere in it. With exact
+timestamps this is the plain rule: missing = rounded spacing − 1 (:func:`missing_periods`, the
+recorder's online count). The nominal period is the log's rate (sidecar) or, for a log without
+one, the median spacing over :data:`SPAN` samples (robust to gaps and to bunched stamps).
 """
 
 from __future__ import annotations
@@ -22,9 +25,11 @@ from dataclasses import dataclass
 import numpy as np
 
 GAP_FACTOR = 1.5
-#: samples each side (plus twice the candidate's length in periods) whose median level judges it
+#: samples each side whose median level judges a candidate
 LEVEL_WINDOW = 25
-#: candidates with fewer samples than this between them are one gap (a loss split by jitter)
+#: intervals shorter than this many periods right after a candidate are the loop catching up
+CATCH_UP = 0.5
+#: candidates with fewer settled samples than this between them are judged as one
 MIN_PIECE = 3
 #: intervals per span of the nominal-period estimate
 SPAN = 10
@@ -34,8 +39,10 @@ SPAN = 10
 class Gap:
     index: int          # the first sample after the gap
     t_before: float     # timestamp of the last sample before it [s]
-    t_after: float      # timestamp of the first sample after it [s]
+    t_after: float      # timestamp of the sample the log resumes at [s]
     missing: int        # periods missing
+    resume: int | None = None   # where the log resumes when the loss may lie anywhere in a
+                                # stretch of jittered samples (index..resume-1, left out of pieces)
 
     def as_dict(self) -> dict:
         return {"after_s": self.t_before, "resume_s": self.t_after, "missing_periods": self.missing}
@@ -71,23 +78,32 @@ def find_gaps(t: np.ndarray, period_s: float | None) -> list[Gap]:
     cand = np.flatnonzero(dt > GAP_FACTOR * period_s)
     if cand.size == 0:
         return []
-    # clusters of candidates: intervals [first, last] with fewer than MIN_PIECE samples between
-    split = np.flatnonzero(np.diff(cand) >= MIN_PIECE) + 1
-    clusters = [(int(c[0]), int(c[-1])) for c in np.split(cand, split)]
+    short = dt < CATCH_UP * period_s
+    events = []                                   # (first interval, last interval, settled sample)
+    for c in cand:
+        settle = int(c) + 1
+        while settle < dt.size and short[settle]:
+            settle += 1
+        if events and c < events[-1][2] + MIN_PIECE:
+            events[-1] = (events[-1][0], int(c), max(settle, events[-1][2]))
+        else:
+            events.append((int(c), int(c), settle))
     level = (t - t[0]) / period_s - np.arange(t.size)
     gaps = []
-    for i, (first, last) in enumerate(clusters):
-        a, b = first, last + 1                       # samples just before / just after
-        w = LEVEL_WINDOW + 2 * int(np.ceil((t[b] - t[a]) / period_s))
-        lo = clusters[i - 1][1] + 1 if i else 0
-        hi = clusters[i + 1][0] + 1 if i + 1 < len(clusters) else t.size
-        before = np.median(level[max(lo, a + 1 - w): a + 1])
-        after = np.median(level[b: min(hi, b + w)])
-        room = int(round((t[b] - t[a]) / period_s)) - (b - a)
+    for i, (first, last, settle) in enumerate(events):
+        lo = events[i - 1][2] if i else 0
+        hi = events[i + 1][0] + 1 if i + 1 < len(events) else t.size
+        before = np.median(level[max(lo, first + 1 - LEVEL_WINDOW): first + 1])
+        after = np.median(level[settle: max(min(hi, settle + LEVEL_WINDOW), settle + 1)])
+        room = int(round((t[settle] - t[first]) / period_s)) - (settle - first)
         missing = min(int(round(after - before)), room)
-        if missing >= 1:
-            k = first + int(np.argmax(dt[first: last + 1]))
-            gaps.append(Gap(k + 1, float(t[k]), float(t[k + 1]), missing))
+        if missing < 1:
+            continue
+        if settle == first + 1:
+            gaps.append(Gap(first + 1, float(t[first]), float(t[first + 1]), missing))
+        else:  # the loss lies somewhere in a caught-up stall (up to its first settled interval)
+            resume = min(settle + 1, t.size - 1)
+            gaps.append(Gap(first + 1, float(t[first]), float(t[resume]), missing, resume))
     return gaps
 
 
@@ -98,8 +114,10 @@ def recording_gaps(recording) -> list[Gap]:
 
 def piece_bounds(recording) -> list[tuple[int, int]]:
     """``[first, last)`` sample indices of the recording's gap-free pieces, in order."""
-    bounds = [0] + [g.index for g in recording_gaps(recording)] + [len(recording)]
-    return [(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+    gaps = recording_gaps(recording)
+    starts = [0] + [g.index if g.resume is None else g.resume for g in gaps]
+    ends = [g.index for g in gaps] + [len(recording)]
+    return [(a, b) for a, b in zip(starts, ends) if b > a]
 
 
 def split_at_gaps(recording) -> list:
