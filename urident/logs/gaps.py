@@ -9,10 +9,13 @@ interval longer than :data:`GAP_FACTOR`·T is only a candidate. The samples afte
 at less than :data:`CATCH_UP`·T are the catch-up; where they end the timing has settled. The
 candidate is a gap of ``m`` missing periods when the median of r over :data:`LEVEL_WINDOW`
 settled samples after it exceeds the median over those before it by ``m`` (rounded, ≥ 1, at most
-what the stretch leaves room for). A late sample followed by a short interval, or a stall the
-loop catches up, is jitter, not a gap. Candidates closer than :data:`MIN_PIECE` settled samples
-are judged as one; when that stretch (or a caught-up stall) hides a loss, its samples are left out
-of the gap-free pieces (``Gap.resume``), since the loss may lie anywhere in it. With exact
+what the stretch leaves room for; candidates in order, each gap's step removed from r after it).
+A late sample followed by a short interval, a stall the loop catches up, a burst of bunched
+receive times, is jitter, not a gap. A gap lies in its candidate interval when that interval
+holds the missing periods and no catch-up follows; otherwise (a loss in a caught-up stall) the
+samples from the candidate to where r steps are left out of the gap-free pieces (``Gap.resume``).
+A window's level is its :data:`LEVEL_QUANTILE` quantile of r, since latency and batching delay
+stamps and never advance them. With exact
 timestamps this is the plain rule: missing = rounded spacing − 1 (:func:`missing_periods`, the
 recorder's online count). The nominal period is the log's rate (sidecar) or, for a log without
 one, the median spacing over :data:`SPAN` samples (robust to gaps and to bunched stamps).
@@ -27,10 +30,10 @@ import numpy as np
 GAP_FACTOR = 1.5
 #: samples each side whose median level judges a candidate
 LEVEL_WINDOW = 25
+#: the level of a window is this quantile of its r (jitter delays stamps far more than it advances them)
+LEVEL_QUANTILE = 0.1
 #: intervals shorter than this many periods right after a candidate are the loop catching up
 CATCH_UP = 0.5
-#: candidates with fewer settled samples than this between them are judged as one
-MIN_PIECE = 3
 #: intervals per span of the nominal-period estimate
 SPAN = 10
 
@@ -79,31 +82,45 @@ def find_gaps(t: np.ndarray, period_s: float | None) -> list[Gap]:
     if cand.size == 0:
         return []
     short = dt < CATCH_UP * period_s
-    events = []                                   # (first interval, last interval, settled sample)
+    events: list[list[int]] = []                 # [first interval, settled sample]
     for c in cand:
         settle = int(c) + 1
         while settle < dt.size and short[settle]:
             settle += 1
-        if events and c < events[-1][2] + MIN_PIECE:
-            events[-1] = (events[-1][0], int(c), max(settle, events[-1][2]))
+        if events and c < events[-1][1]:         # a candidate inside the previous catch-up
+            events[-1][1] = max(settle, events[-1][1])
         else:
-            events.append((int(c), int(c), settle))
-    level = (t - t[0]) / period_s - np.arange(t.size)
+            events.append([int(c), settle])
+    n = t.size
+    level = (t - t[0]) / period_s - np.arange(n)
     gaps = []
-    for i, (first, last, settle) in enumerate(events):
-        lo = events[i - 1][2] if i else 0
-        hi = events[i + 1][0] + 1 if i + 1 < len(events) else t.size
-        before = np.median(level[max(lo, first + 1 - LEVEL_WINDOW): first + 1])
-        after = np.median(level[settle: max(min(hi, settle + LEVEL_WINDOW), settle + 1)])
+    for i, (first, settle) in enumerate(events):
+        before = np.quantile(level[max(0, first + 1 - LEVEL_WINDOW): first + 1], LEVEL_QUANTILE)
+        after = np.quantile(level[settle: min(n, settle + LEVEL_WINDOW)], LEVEL_QUANTILE)
         room = int(round((t[settle] - t[first]) / period_s)) - (settle - first)
         missing = min(int(round(after - before)), room)
         if missing < 1:
             continue
-        if settle == first + 1:
+        if settle == first + 1 and round(dt[first] / period_s) - 1 >= missing:
             gaps.append(Gap(first + 1, float(t[first]), float(t[first + 1]), missing))
-        else:  # the loss lies somewhere in a caught-up stall (up to its first settled interval)
-            resume = min(settle + 1, t.size - 1)
-            gaps.append(Gap(first + 1, float(t[first]), float(t[resume]), missing, resume))
+            level[first + 1:] -= missing         # later candidates see this gap's step removed
+            continue
+        # where r steps by ``missing`` (from its median level), between the neighbouring candidates
+        lo = max(0, first + 1 - LEVEL_WINDOW, events[i - 1][1] if i else 0)
+        hi = min(n, settle + LEVEL_WINDOW, events[i + 1][0] + 1 if i + 1 < len(events) else n)
+        before = np.median(level[lo: first + 1])
+        after = before + missing
+        cost_b = np.concatenate(([0.0], np.cumsum(np.abs(level[lo:hi] - before))))
+        cost_a = np.concatenate((np.cumsum(np.abs(level[lo:hi] - after)[::-1])[::-1], [0.0]))
+        step = lo + int(np.argmin(cost_b + cost_a))
+        start = max(min(first + 1, step), 1)
+        resume = max(settle + 1 if settle > first + 1 else settle, step)
+        resume = min(resume, n - 1)
+        if start == first + 1 and resume == first + 1:
+            gaps.append(Gap(first + 1, float(t[first]), float(t[first + 1]), missing))
+        else:  # the loss lies somewhere in start..resume: jittered or caught-up samples
+            gaps.append(Gap(start, float(t[start - 1]), float(t[resume]), missing, resume))
+        level[first + 1:] -= missing
     return gaps
 
 
