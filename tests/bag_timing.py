@@ -55,3 +55,35 @@ def sampled_at(rec, t: np.ndarray):
     cols = [np.column_stack([np.interp(x, tt, a[:, j]) for j in range(a.shape[1])])
             for a in (rec.q, rec.qd, rec.current)]
     return cols
+
+
+def write_timed_bag(path, storage: str, rec, stamps: np.ndarray, *, receive=None, speed=(),
+                    speed_topic: str = "/speed_scaling_state_broadcaster/speed_scaling",
+                    topic: str = "/joint_states", zero_stamps: bool = False):
+    """A bag with rosbags' own Writer: one JointState per time in ``stamps`` [s] (values of
+    ``rec`` there, UR's joint names), received at ``receive`` (default: the stamp; with
+    ``zero_stamps`` the headers carry no stamp), and ``speed`` = [(receive_s, value), ...] on
+    ``speed_topic`` as the driver's std_msgs/Float64."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    names = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint",
+             "wrist_2_joint", "wrist_3_joint"]
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    js, f64 = store.types["sensor_msgs/msg/JointState"], store.types["std_msgs/msg/Float64"]
+    header, time = store.types["std_msgs/msg/Header"], store.types["builtin_interfaces/msg/Time"]
+    q, qd, cur = sampled_at(rec, stamps)
+    ns = np.round(np.asarray(stamps) * 1e9).astype(np.int64)
+    recv = ns if receive is None else np.round(np.asarray(receive) * 1e9).astype(np.int64)
+    plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
+    with Writer(path, version=9, storage_plugin=plugin) as w:
+        c = w.add_connection(topic, "sensor_msgs/msg/JointState", typestore=store)
+        s = w.add_connection(speed_topic, "std_msgs/msg/Float64", typestore=store) if len(speed) else None
+        for k in range(ns.size):
+            st = 0 if zero_stamps else int(ns[k])
+            msg = js(header=header(stamp=time(sec=st // 10**9, nanosec=st % 10**9), frame_id=""),
+                     name=names, position=q[k], velocity=qd[k], effort=cur[k])
+            w.write(c, int(recv[k]), store.serialize_cdr(msg, msg.__msgtype__))
+        for at, value in speed:
+            w.write(s, int(round(at * 1e9)), store.serialize_cdr(f64(data=float(value)), f64.__msgtype__))
+    return path

@@ -372,7 +372,8 @@ class _BagLoader:
         cuts = []
         for k in range(1, local.size):
             r = local[k] / ref
-            if r > RATE_CHANGE_RATIO or r < 1.0 / RATE_CHANGE_RATIO:
+            if (r > RATE_CHANGE_RATIO or r < 1.0 / RATE_CHANGE_RATIO) and \
+                    self._rate_differs(t, k + RATE_WINDOW // 2 + 1):
                 cuts.append(k + RATE_WINDOW // 2 + 1)
                 ref = local[k]
         if not cuts:
@@ -391,6 +392,14 @@ class _BagLoader:
                                  f"or {_DROP_HINT} outside the longest stretch")
         self.report.add(issues)
         return t[a:b], v[a:b], num[a:b]
+
+    @staticmethod
+    def _rate_differs(t: np.ndarray, cut: int) -> bool:
+        """The nominal periods (over spans, so a stall the control loop catches up averages out)
+        of the stretches before and after ``cut`` differ by more than RATE_CHANGE_RATIO."""
+        a = nominal_period(t[max(0, cut - 2 * RATE_WINDOW): cut])
+        b = nominal_period(t[cut: cut + 2 * RATE_WINDOW])
+        return bool(a and b and not 1 / RATE_CHANGE_RATIO <= b / a <= RATE_CHANGE_RATIO)
 
     def _stopped(self, t: np.ndarray, status) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         """Mask of samples in a stop (driver status topics, zero-order hold on receive time)."""
