@@ -56,6 +56,10 @@ def test_receive_time_with_dds_batching_is_no_gap(tmp_path, sample):
                                    zero_stamps=True), robot="ur5")
     assert rec.metadata["time_source"] == "bag receive time"
     assert recording_gaps(rec) == [] and rec.rate_hz == pytest.approx(500, rel=1e-3)
+    from urident.ident.preprocess import sample_rate
+
+    assert sample_rate(rec.t) == pytest.approx(500, rel=1e-3)   # not the bunches' 2 µs spacing
+    assert main(["identify", str(tmp_path / "b"), "--robot", "ur5", "--out", str(tmp_path / "p.yaml")]) == 0
 
 
 @pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
