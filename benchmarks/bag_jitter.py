@@ -37,7 +37,8 @@ def stream(model: str, n: int, rng: np.random.Generator) -> np.ndarray:
     if model in ("rt_kernel", "generic_kernel", "overloaded"):
         return control_loop_stamps(n, PERIOD, rng, model)
     if model == "symmetric_15pct":
-        return 1.0 + PERIOD * np.arange(n) + rng.normal(0, 0.15 * PERIOD, n).clip(-0.45 * PERIOD, 0.45 * PERIOD)
+        jitter = rng.normal(0, 0.15 * PERIOD, n).clip(-0.45 * PERIOD, 0.45 * PERIOD)
+        return 1.0 + PERIOD * np.arange(n) + jitter
     if model == "drift_200ppm":
         return control_loop_stamps(n, PERIOD * (1 + 200e-6), rng, "generic_kernel")
     if model == "receive_time_batched":

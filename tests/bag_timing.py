@@ -78,12 +78,14 @@ def write_timed_bag(path, storage: str, rec, stamps: np.ndarray, *, receive=None
     plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
     with Writer(path, version=9, storage_plugin=plugin) as w:
         c = w.add_connection(topic, "sensor_msgs/msg/JointState", typestore=store)
-        s = w.add_connection(speed_topic, "std_msgs/msg/Float64", typestore=store) if len(speed) else None
+        s = (w.add_connection(speed_topic, "std_msgs/msg/Float64", typestore=store)
+             if len(speed) else None)
         for k in range(ns.size):
             st = 0 if zero_stamps else int(ns[k])
             msg = js(header=header(stamp=time(sec=st // 10**9, nanosec=st % 10**9), frame_id=""),
                      name=names, position=q[k], velocity=qd[k], effort=cur[k])
             w.write(c, int(recv[k]), store.serialize_cdr(msg, msg.__msgtype__))
         for at, value in speed:
-            w.write(s, int(round(at * 1e9)), store.serialize_cdr(f64(data=float(value)), f64.__msgtype__))
+            raw = store.serialize_cdr(f64(data=float(value)), f64.__msgtype__)
+            w.write(s, int(round(at * 1e9)), raw)
     return path

@@ -59,7 +59,8 @@ def test_receive_time_with_dds_batching_is_no_gap(tmp_path, sample):
     from urident.ident.preprocess import sample_rate
 
     assert sample_rate(rec.t) == pytest.approx(500, rel=1e-3)   # not the bunches' 2 µs spacing
-    assert main(["identify", str(tmp_path / "b"), "--robot", "ur5", "--out", str(tmp_path / "p.yaml")]) == 0
+    out = str(tmp_path / "p.yaml")
+    assert main(["identify", str(tmp_path / "b"), "--robot", "ur5", "--out", out]) == 0
 
 
 @pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
@@ -170,3 +171,22 @@ def test_a_bag_without_speed_scaling_loads_as_before(tmp_path, sample):
     rec = load_log(write_timed_bag(tmp_path / "b", "mcap", sample, stamps), robot="ur5")
     assert rec.metadata["speed_scaling"] is None and rec.metadata["excluded"] == []
     assert not any("speed scaling" in n for n in rec.metadata["notes"]) and len(rec) == 2000
+
+
+def test_every_consumer_reads_a_jittered_bag(tmp_path, sample, capsys):
+    valid = load_log(ROOT / "logs" / "sample_valid.csv")
+    ident = write_timed_bag(tmp_path / "ident", "mcap", sample, _stamps(sample, "generic_kernel"))
+    vbag = write_timed_bag(tmp_path / "valid", "sqlite3", valid, _stamps(valid, "overloaded", 2))
+    params, out = str(tmp_path / "p.yaml"), tmp_path
+    for argv in (["identify", str(ident), "--robot", "ur5", "--out", params],
+                 ["validate", str(vbag), "--robot", "ur5", "--params", params],
+                 ["view", str(vbag), "--robot", "ur5", "--params", params,
+                  "--save", str(out / "v.rrd")],
+                 ["gap", "--robot", "ur5", "--ident", str(ident), "--valid", str(vbag),
+                  "--json-out", str(out / "gap.json")]):
+        assert main(argv) == 0, argv[0]
+    # no tool is mounted in the sample run: payload reads the bag and finds no payload
+    capsys.readouterr()
+    assert main(["payload", str(vbag), "--robot", "ur5", "--params", params,
+                 "--out", str(out / "tool.yaml")]) == 2
+    assert "estimated payload mass is" in capsys.readouterr().err

@@ -29,9 +29,9 @@ import numpy as np
 
 from urident.errors import LogFormatError
 
+from .gaps import describe_gaps, find_gaps, nominal_period
 from .recording import Recording
 from .schema import FIELDS_BY_ATTR, N_JOINTS
-from .gaps import describe_gaps, find_gaps, nominal_period
 from .validate import DropReport, Issue, check_jumps, check_time, check_values
 
 DEFAULT_TOPIC = "/joint_states"
@@ -43,7 +43,6 @@ _JOINT_STATE = "sensor_msgs/msg/JointState"
 _SAFETY_MODE = "ur_dashboard_msgs/msg/SafetyMode"
 _ROBOT_MODE = "ur_dashboard_msgs/msg/RobotMode"
 _FLOAT64 = "std_msgs/msg/Float64"
-SPEED_SCALING_TOPIC = "/speed_scaling_state_broadcaster/speed_scaling"
 _SPEED = "speed scaling"
 _SUFFIXES = (".mcap", ".db3")
 _INSTALL_HINT = "reading and writing rosbag2 needs the rosbags package: pip install rosbags==0.11.9"
@@ -157,6 +156,9 @@ class _BagLoader:
         self.notes: list[str] = []
         self.stamps: dict[int, float] = {}
         self.duplicates = 0
+        self.speed_topic: str | None = None        # the driver's speed scaling topic, if recorded
+        self.speed: np.ndarray | None = None       # its held value at each sample (fraction)
+        self.speed_unit = 100.0
 
     def where(self, number: int) -> str:
         stamp = self.stamps.get(int(number))
@@ -281,8 +283,10 @@ class _BagLoader:
             self.notes.append(f"{self.path}: several speed scaling topics "
                               f"({', '.join(sorted({c.topic for c in found}))}); none used")
             return None
-        self.speed_topic = found[0].topic if found else None
-        return found[0] if found else None
+        if not found:
+            return None
+        self.speed_topic = found[0].topic
+        return found[0]
 
     def _one_publisher(self, conns):
         """Several connections (or QoS profiles) on the topic are several publishers."""
@@ -498,10 +502,9 @@ class _BagLoader:
                          robot=self.robot, rate_hz=rate, metadata=metadata,
                          safety_status_bits=bits, robot_mode=mode)
 
-
     def _speed_report(self) -> dict | None:
         """Speed scaling over the samples kept: metadata and a note (None without the topic)."""
-        topic = getattr(self, "speed_topic", None)
+        topic = self.speed_topic
         if topic is None:
             return None
         held = self.speed[np.isfinite(self.speed)] if self.speed is not None else np.array([])
