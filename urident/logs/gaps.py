@@ -92,26 +92,38 @@ def find_gaps(t: np.ndarray, period_s: float | None) -> list[Gap]:
         else:
             events.append([int(c), settle])
     n = t.size
-    level = (t - t[0]) / period_s - np.arange(n)
-    gaps = []
+    raw = (t - t[0]) / period_s - np.arange(n)
+    gaps: list[Gap] = []
+    total = 0
+
+    def level(a: int, b: int) -> np.ndarray:
+        """r over samples a..b-1 with the steps of the gaps found so far removed."""
+        seg = raw[a:b] - total
+        for g in reversed(gaps):
+            if g.index <= a:
+                break
+            seg[: g.index - a] += g.missing
+        return seg
+
     for i, (first, settle) in enumerate(events):
-        before = np.quantile(level[max(0, first + 1 - LEVEL_WINDOW): first + 1], LEVEL_QUANTILE)
-        after = np.quantile(level[settle: min(n, settle + LEVEL_WINDOW)], LEVEL_QUANTILE)
+        before = np.quantile(level(max(0, first + 1 - LEVEL_WINDOW), first + 1), LEVEL_QUANTILE)
+        after = np.quantile(level(settle, min(n, settle + LEVEL_WINDOW)), LEVEL_QUANTILE)
         room = int(round((t[settle] - t[first]) / period_s)) - (settle - first)
         missing = min(int(round(after - before)), room)
         if missing < 1:
             continue
         if settle == first + 1 and round(dt[first] / period_s) - 1 >= missing:
             gaps.append(Gap(first + 1, float(t[first]), float(t[first + 1]), missing))
-            level[first + 1:] -= missing         # later candidates see this gap's step removed
+            total += missing
             continue
         # where r steps by ``missing`` (from its median level), between the neighbouring candidates
         lo = max(0, first + 1 - LEVEL_WINDOW, events[i - 1][1] if i else 0)
         hi = min(n, settle + LEVEL_WINDOW, events[i + 1][0] + 1 if i + 1 < len(events) else n)
-        before = np.median(level[lo: first + 1])
+        near = level(lo, hi)
+        before = np.median(near[: first + 1 - lo])
         after = before + missing
-        cost_b = np.concatenate(([0.0], np.cumsum(np.abs(level[lo:hi] - before))))
-        cost_a = np.concatenate((np.cumsum(np.abs(level[lo:hi] - after)[::-1])[::-1], [0.0]))
+        cost_b = np.concatenate(([0.0], np.cumsum(np.abs(near - before))))
+        cost_a = np.concatenate((np.cumsum(np.abs(near - after)[::-1])[::-1], [0.0]))
         step = lo + int(np.argmin(cost_b + cost_a))
         start = max(min(first + 1, step), 1)
         resume = max(settle + 1 if settle > first + 1 else settle, step)
@@ -120,7 +132,7 @@ def find_gaps(t: np.ndarray, period_s: float | None) -> list[Gap]:
             gaps.append(Gap(first + 1, float(t[first]), float(t[first + 1]), missing))
         else:  # the loss lies somewhere in start..resume: jittered or caught-up samples
             gaps.append(Gap(start, float(t[start - 1]), float(t[resume]), missing, resume))
-        level[first + 1:] -= missing
+        total += missing
     return gaps
 
 
