@@ -28,6 +28,24 @@ def test_find_gaps_counts_missing_periods_and_ignores_jitter():
     assert missing_periods(1.49 * period, period) == 0 and missing_periods(1.6 * period, period) == 1
 
 
+def test_jitter_that_averages_out_is_no_gap_and_a_loss_in_it_is_left_out_of_pieces():
+    """A late stamp followed by a short interval, and a stall the control loop catches up (cycles
+    run at once), keep the timing level: no gap. A message lost inside such a stall is one, and
+    the stretch it may lie in is in no piece."""
+    from urident.logs.gaps import find_gaps
+
+    period = 0.002
+    slots = np.arange(2000) * period
+    t = slots.copy()
+    t[300] += 0.9 * period                              # 1.9 then 0.1 periods
+    t[800:805] = slots[800] + 4.2 * period + 1e-5 * np.arange(5)   # 4 ms stall, then caught up
+    assert np.diff(t).max() > 4 * period and find_gaps(t, period) == []
+    lost = np.delete(t, 803)                            # the broadcaster skipped one cycle in it
+    (gap,) = find_gaps(lost, period)
+    assert gap.missing == 1 and gap.index <= 803 <= gap.resume
+    assert find_gaps(np.delete(slots, [500, 520, 521]), period)[1].missing == 2
+
+
 def copy_log(src: Path, dst: Path, drop: slice | None = None, status: str | None = None,
              reason: str | None = None) -> Path:
     """A copy of an urident log with data rows ``drop`` removed and/or another status."""

@@ -246,7 +246,7 @@ def test_gap_is_named(tmp_path, sample):
     msgs = messages_of(sample, 300)
     del msgs[100:140]
     rec = load_log(write_bag(tmp_path / "b", "mcap", msgs), robot="ur5")
-    assert any("1 gap(s)" in n and "message 100" in n for n in rec.metadata["notes"])
+    assert any("1 gap, 40 periods missing" in n and "message 100 " in n for n in rec.metadata["notes"])
 
 
 def test_bad_inputs_are_one_line(tmp_path, sample, capsys):

@@ -16,7 +16,11 @@ the jitter into noise (each output becomes an average over a randomly shifted ti
 the steps deviate from their median by more than 1 %, the signal is interpolated (linearly) onto a
 uniform grid at the median rate, filtered and differentiated there, and the result interpolated
 back to the original sample times. The sample set is therefore unchanged (the reference figures are
-defined on it), and with a uniform log the grid is the log itself.
+defined on it), and with a uniform log the grid is the log itself. A bag's header stamps are such
+sample times too (the ros2_control cycle that read the state; its wake-up latency and catch-up
+are jitter of this kind: ``benchmarks/bag_jitter.py`` measures the effect). Stamps that come in
+bunches (receive times of DDS batches) have no median period; the grid then takes the gap rule's
+nominal period.
 
 Causal mode (a stream: the live view of a running session has no future samples, so no
 zero-phase filter): the same filter s·L(s) at the same corner, run forwards only
@@ -123,12 +127,25 @@ def lowpass_coefficients(cutoff_hz: float, fs: float, prewarp: bool = True) -> t
     return np.asarray(b), np.asarray(a)
 
 
+def _period(t: np.ndarray) -> float:
+    """The median step, unless stamps come in bunches (a bag's receive times, delivered in DDS
+    batches), where it is no period: then the gap rule's nominal period over spans."""
+    dt = np.diff(t)
+    med = float(np.median(dt))
+    if med >= 0.5 * (t[-1] - t[0]) / dt.size:
+        return med
+    from urident.logs.gaps import nominal_period
+
+    return float(nominal_period(t))
+
+
 def sample_rate(t: np.ndarray) -> float:
-    """Median sample rate [Hz] of timestamps ``t``."""
-    dt = np.diff(np.asarray(t, dtype=float))
+    """Median sample rate [Hz] of timestamps ``t`` (bunched stamps: :func:`_period`)."""
+    t = np.asarray(t, dtype=float)
+    dt = np.diff(t)
     if dt.size == 0 or not np.all(dt > 0):
         raise LogFormatError("timestamps must be strictly increasing")
-    return float(1.0 / np.median(dt))
+    return float(1.0 / _period(t))
 
 
 def zero_phase_lowpass(x: np.ndarray, fs: float, cutoff_hz: float, prewarp: bool = True) -> np.ndarray:
@@ -140,7 +157,7 @@ def zero_phase_lowpass(x: np.ndarray, fs: float, cutoff_hz: float, prewarp: bool
 def _uniform_grid(t: np.ndarray) -> np.ndarray | None:
     """A uniform grid at the median rate covering ``t``, or None when ``t`` is uniform within 1 %."""
     dt = np.diff(t)
-    med = float(np.median(dt))
+    med = _period(t)
     if np.max(np.abs(dt / med - 1.0)) <= 0.01:
         return None
     n = int(np.floor((t[-1] - t[0]) / med + 1e-9)) + 1

@@ -1,9 +1,24 @@
 """Gaps in a recording: controller samples that never reached the log.
 
-One rule everywhere (the session recorder, the loaders, every consumer): two consecutive samples
-more than :data:`GAP_FACTOR` nominal periods apart enclose a gap; the number of missing periods is
-the rounded spacing minus one. The nominal period is the log's rate (sidecar) or, for a foreign log
-without one, the median sample spacing.
+One rule everywhere (the session recorder, the loaders, every consumer). A log's timestamps are a
+uniform grid of nominal period T plus jitter (controller timestamps: none; a bag's header.stamp:
+the ros2_control loop's wake-up latency, whose absolute schedule then catches up with cycles run
+at once; DDS batching of receive times). Write r_k = (t_k − t_0)/T − k, the periods sample k runs
+ahead of the grid: jitter moves r up and back, a lost sample steps it up by one for good. So an
+interval longer than :data:`GAP_FACTOR`·T is only a candidate. The samples after it that follow
+at less than :data:`CATCH_UP`·T are the catch-up; where they end the timing has settled. The
+candidate is a gap of ``m`` missing periods when the median of r over :data:`LEVEL_WINDOW`
+settled samples after it exceeds the median over those before it by ``m`` (rounded, ≥ 1, at most
+what the stretch leaves room for; candidates in order, each gap's step removed from r after it).
+A late sample followed by a short interval, a stall the loop catches up, a burst of bunched
+receive times, is jitter, not a gap. A gap lies in its candidate interval when that interval
+holds the missing periods and no catch-up follows; otherwise (a loss in a caught-up stall) the
+samples from the candidate to where r steps are left out of the gap-free pieces (``Gap.resume``).
+A window's level is its :data:`LEVEL_QUANTILE` quantile of r, since latency and batching delay
+stamps and never advance them. With exact
+timestamps this is the plain rule: missing = rounded spacing − 1 (:func:`missing_periods`, the
+recorder's online count). The nominal period is the log's rate (sidecar) or, for a log without
+one, the median spacing over :data:`SPAN` samples (robust to gaps and to bunched stamps).
 """
 
 from __future__ import annotations
@@ -13,42 +28,112 @@ from dataclasses import dataclass
 import numpy as np
 
 GAP_FACTOR = 1.5
+#: samples each side whose median level judges a candidate
+LEVEL_WINDOW = 25
+#: the level of a window is this quantile of its r (jitter delays stamps far more than it advances them)
+LEVEL_QUANTILE = 0.1
+#: intervals shorter than this many periods right after a candidate are the loop catching up
+CATCH_UP = 0.5
+#: intervals per span of the nominal-period estimate
+SPAN = 10
 
 
 @dataclass(frozen=True)
 class Gap:
     index: int          # the first sample after the gap
     t_before: float     # timestamp of the last sample before it [s]
-    t_after: float      # timestamp of the first sample after it [s]
+    t_after: float      # timestamp of the sample the log resumes at [s]
     missing: int        # periods missing
+    resume: int | None = None   # where the log resumes when the loss may lie anywhere in a
+                                # stretch of jittered samples (index..resume-1, left out of pieces)
 
     def as_dict(self) -> dict:
         return {"after_s": self.t_before, "resume_s": self.t_after, "missing_periods": self.missing}
 
 
 def missing_periods(dt: float, period_s: float) -> int:
-    """Periods missing between two samples ``dt`` apart (0 unless ``dt > GAP_FACTOR·period``)."""
+    """Periods missing between two exactly timed samples ``dt`` apart (0 unless
+    ``dt > GAP_FACTOR·period``): the recorder's online count on controller timestamps."""
     if dt <= GAP_FACTOR * period_s:
         return 0
     return max(int(round(dt / period_s)) - 1, 1)
 
 
 def nominal_period(t: np.ndarray, rate_hz: float | None = None) -> float | None:
+    """1 / ``rate_hz``, else the median over k of (t[k+s] − t[k]) / s, s = min(SPAN, N−1) [s]."""
     if rate_hz:
         return 1.0 / float(rate_hz)
-    dt = np.diff(np.asarray(t, dtype=float))
-    dt = dt[dt > 0]
-    return float(np.median(dt)) if len(dt) else None
+    t = np.asarray(t, dtype=float)
+    s = min(SPAN, t.size - 1)
+    if s < 1:
+        return None
+    span = (t[s:] - t[:-s]) / s
+    span = span[span > 0]
+    return float(np.median(span)) if span.size else None
 
 
 def find_gaps(t: np.ndarray, period_s: float | None) -> list[Gap]:
+    """The gaps of timestamps ``t`` at nominal period ``period_s`` (module doc)."""
     t = np.asarray(t, dtype=float)
     if period_s is None or len(t) < 2:
         return []
     dt = np.diff(t)
-    where = np.flatnonzero(dt > GAP_FACTOR * period_s)
-    return [Gap(int(k + 1), float(t[k]), float(t[k + 1]), missing_periods(float(dt[k]), period_s))
-            for k in where]
+    cand = np.flatnonzero(dt > GAP_FACTOR * period_s)
+    if cand.size == 0:
+        return []
+    short = dt < CATCH_UP * period_s
+    events: list[list[int]] = []                 # [first interval, settled sample]
+    for c in cand:
+        settle = int(c) + 1
+        while settle < dt.size and short[settle]:
+            settle += 1
+        if events and c < events[-1][1]:         # a candidate inside the previous catch-up
+            events[-1][1] = max(settle, events[-1][1])
+        else:
+            events.append([int(c), settle])
+    n = t.size
+    raw = (t - t[0]) / period_s - np.arange(n)
+    gaps: list[Gap] = []
+    total = 0
+
+    def level(a: int, b: int) -> np.ndarray:
+        """r over samples a..b-1 with the steps of the gaps found so far removed."""
+        seg = raw[a:b] - total
+        for g in reversed(gaps):
+            if g.index <= a:
+                break
+            seg[: g.index - a] += g.missing
+        return seg
+
+    for i, (first, settle) in enumerate(events):
+        before = np.quantile(level(max(0, first + 1 - LEVEL_WINDOW), first + 1), LEVEL_QUANTILE)
+        after = np.quantile(level(settle, min(n, settle + LEVEL_WINDOW)), LEVEL_QUANTILE)
+        room = int(round((t[settle] - t[first]) / period_s)) - (settle - first)
+        missing = min(int(round(after - before)), room)
+        if missing < 1:
+            continue
+        if settle == first + 1 and round(dt[first] / period_s) - 1 >= missing:
+            gaps.append(Gap(first + 1, float(t[first]), float(t[first + 1]), missing))
+            total += missing
+            continue
+        # where r steps by ``missing`` (from its median level), between the neighbouring candidates
+        lo = max(0, first + 1 - LEVEL_WINDOW, events[i - 1][1] if i else 0)
+        hi = min(n, settle + LEVEL_WINDOW, events[i + 1][0] + 1 if i + 1 < len(events) else n)
+        near = level(lo, hi)
+        before = np.median(near[: first + 1 - lo])
+        after = before + missing
+        cost_b = np.concatenate(([0.0], np.cumsum(np.abs(near - before))))
+        cost_a = np.concatenate((np.cumsum(np.abs(near - after)[::-1])[::-1], [0.0]))
+        step = lo + int(np.argmin(cost_b + cost_a))
+        start = max(min(first + 1, step), 1)
+        resume = max(settle + 1 if settle > first + 1 else settle, step)
+        resume = min(resume, n - 1)
+        if start == first + 1 and resume == first + 1:
+            gaps.append(Gap(first + 1, float(t[first]), float(t[first + 1]), missing))
+        else:  # the loss lies somewhere in start..resume: jittered or caught-up samples
+            gaps.append(Gap(start, float(t[start - 1]), float(t[resume]), missing, resume))
+        total += missing
+    return gaps
 
 
 def recording_gaps(recording) -> list[Gap]:
@@ -58,8 +143,10 @@ def recording_gaps(recording) -> list[Gap]:
 
 def piece_bounds(recording) -> list[tuple[int, int]]:
     """``[first, last)`` sample indices of the recording's gap-free pieces, in order."""
-    bounds = [0] + [g.index for g in recording_gaps(recording)] + [len(recording)]
-    return [(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+    gaps = recording_gaps(recording)
+    starts = [0] + [g.index if g.resume is None else g.resume for g in gaps]
+    ends = [g.index for g in gaps] + [len(recording)]
+    return [(a, b) for a, b in zip(starts, ends) if b > a]
 
 
 def split_at_gaps(recording) -> list:

@@ -6,7 +6,10 @@ joint_state_broadcaster), joints matched by name to the robot file's order (UR's
 ``header.stamp`` (the bag's receive time when no message carries a stamp), ``effort`` read as the
 motor current [A] (UR's default) or as joint torque [N·m]. The driver's
 ``…/safety_mode`` and ``…/robot_mode`` topics (io_and_status_controller), when recorded, mark
-stopped stretches (protective stop, e-stop, robot not running): their samples are excluded.
+stopped stretches (protective stop, e-stop, robot not running): their samples are excluded. So does
+speed scaling 0 on ``/speed_scaling_state_broadcaster/speed_scaling`` (std_msgs/Float64, percent;
+the program paused, the pendant's slider at 0 or a safeguard reduction to standstill); its range
+over the samples kept is reported.
 
 Defects are issues as in CSV logs (``urident.logs.validate``), numbered by message (1-based, in
 bag order) and named by topic and stamp: one line by default, dropped and counted with
@@ -26,6 +29,7 @@ import numpy as np
 
 from urident.errors import LogFormatError
 
+from .gaps import describe_gaps, find_gaps, nominal_period
 from .recording import Recording
 from .schema import FIELDS_BY_ATTR, N_JOINTS
 from .validate import DropReport, Issue, check_jumps, check_time, check_values
@@ -38,6 +42,8 @@ STORAGES = ("mcap", "sqlite3")
 _JOINT_STATE = "sensor_msgs/msg/JointState"
 _SAFETY_MODE = "ur_dashboard_msgs/msg/SafetyMode"
 _ROBOT_MODE = "ur_dashboard_msgs/msg/RobotMode"
+_FLOAT64 = "std_msgs/msg/Float64"
+_SPEED = "speed scaling"
 _SUFFIXES = (".mcap", ".db3")
 _INSTALL_HINT = "reading and writing rosbag2 needs the rosbags package: pip install rosbags==0.11.9"
 _DROP_HINT = "pass --drop-bad to drop such messages"
@@ -54,8 +60,9 @@ _SAFETY_BIT = {1: 0, 2: 1, 3: 2, 4: 3, 5: 4, 6: 5, 7: 6, 8: 8, 9: 9}
 RATE_WINDOW = 25
 RATE_CHANGE_RATIO = 1.5
 
-#: An interval this many median periods long is named as a gap (the consumers' gap rule decides).
-GAP_NOTE_FACTOR = 5.0
+#: Speed scaling at or below this fraction is a standstill the controller holds (the driver
+#: publishes exactly 0 while the program is paused or resuming).
+SPEED_SCALING_PAUSED = 1e-6
 
 # A tiny definition of UR's status messages, so tests and write_bag need no ROS installation.
 SAFETY_MODE_MSG = "uint8 mode\n"
@@ -149,6 +156,9 @@ class _BagLoader:
         self.notes: list[str] = []
         self.stamps: dict[int, float] = {}
         self.duplicates = 0
+        self.speed_topic: str | None = None        # the driver's speed scaling topic, if recorded
+        self.speed: np.ndarray | None = None       # its held value at each sample (fraction)
+        self.speed_unit = 100.0
 
     def where(self, number: int) -> str:
         stamp = self.stamps.get(int(number))
@@ -199,12 +209,18 @@ class _BagLoader:
         conns = self._one_publisher(conns)
         status_conns = [c for c in reader.connections
                         if c.msgtype in (_SAFETY_MODE, _ROBOT_MODE)]
+        speed = self._speed_scaling_connection(reader.connections)
+        status_conns += [speed] if speed is not None else []
         stamps, recv, numbers, values, issues = [], [], [], [], []
-        status: dict[str, list[tuple[int, int]]] = {_SAFETY_MODE: [], _ROBOT_MODE: []}
+        status: dict[str, list] = {_SAFETY_MODE: [], _ROBOT_MODE: [], _SPEED: []}
         index: dict[str, int] | None = None
         order_changes: list[int] = []
         n = 0
         for conn, t_recv, raw in reader.messages(connections=conns + status_conns):
+            if conn.msgtype == _FLOAT64:
+                value = float(store.deserialize_cdr(raw, conn.msgtype).data)
+                status[_SPEED].append((int(t_recv), value))
+                continue
             if conn.msgtype != _JOINT_STATE:
                 msg = store.deserialize_cdr(raw, conn.msgtype)
                 status[conn.msgtype].append((int(t_recv), int(msg.mode)))
@@ -254,6 +270,23 @@ class _BagLoader:
                          np.array(values, dtype=np.float64).reshape(-1, 3 * N_JOINTS),
                          np.array(numbers, dtype=np.int64))
         return msgs, status
+
+    def _speed_scaling_connection(self, connections):
+        """The driver's speed scaling topic (any namespace or tf_prefix: ``…/speed_scaling``, a
+        Float64), the one in the joint topic's namespace when several are recorded."""
+        found = [c for c in connections
+                 if c.msgtype == _FLOAT64 and c.topic.endswith("/speed_scaling")]
+        if len({c.topic for c in found}) > 1:
+            ns = self.topic.rsplit("/", 1)[0]
+            found = [c for c in found if c.topic.rsplit("/", 2)[0] == ns] or found
+        if len({c.topic for c in found}) > 1:
+            self.notes.append(f"{self.path}: several speed scaling topics "
+                              f"({', '.join(sorted({c.topic for c in found}))}); none used")
+            return None
+        if not found:
+            return None
+        self.speed_topic = found[0].topic
+        return found[0]
 
     def _one_publisher(self, conns):
         """Several connections (or QoS profiles) on the topic are several publishers."""
@@ -343,7 +376,8 @@ class _BagLoader:
         cuts = []
         for k in range(1, local.size):
             r = local[k] / ref
-            if r > RATE_CHANGE_RATIO or r < 1.0 / RATE_CHANGE_RATIO:
+            if (r > RATE_CHANGE_RATIO or r < 1.0 / RATE_CHANGE_RATIO) and \
+                    self._rate_differs(t, k + RATE_WINDOW // 2 + 1):
                 cuts.append(k + RATE_WINDOW // 2 + 1)
                 ref = local[k]
         if not cuts:
@@ -363,20 +397,38 @@ class _BagLoader:
         self.report.add(issues)
         return t[a:b], v[a:b], num[a:b]
 
+    @staticmethod
+    def _rate_differs(t: np.ndarray, cut: int) -> bool:
+        """The nominal periods (over spans, so a stall the control loop catches up averages out)
+        of the stretches before and after ``cut`` differ by more than RATE_CHANGE_RATIO."""
+        a = nominal_period(t[max(0, cut - 2 * RATE_WINDOW): cut])
+        b = nominal_period(t[cut: cut + 2 * RATE_WINDOW])
+        return bool(a and b and not 1 / RATE_CHANGE_RATIO <= b / a <= RATE_CHANGE_RATIO)
+
     def _stopped(self, t: np.ndarray, status) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         """Mask of samples in a stop (driver status topics, zero-order hold on receive time)."""
         stopped = np.zeros(t.size, dtype=bool)
         bits = mode = None
         t_ns = np.round(t * 1e9).astype(np.int64)
         reasons = np.full(t.size, "", dtype=object)
+        self.speed = None
         for msgtype, samples in status.items():
             if not samples:
                 continue
             samples.sort()
             at = np.array([s[0] for s in samples], dtype=np.int64)
-            val = np.array([s[1] for s in samples], dtype=np.int64)
             k = np.searchsorted(at, t_ns, side="right") - 1
             known = k >= 0
+            if msgtype == _SPEED:
+                val = np.array([s[1] for s in samples], dtype=np.float64)
+                # the driver publishes percent; its first ROS 2 versions published the fraction
+                self.speed_unit = 100.0 if np.nanmax(np.abs(val)) > 1.0 + 1e-9 else 1.0
+                self.speed = np.where(known, val[np.maximum(k, 0)] / self.speed_unit, np.nan)
+                bad = known & (self.speed <= SPEED_SCALING_PAUSED)
+                reasons[bad & (reasons == "")] = "speed scaling 0 (paused)"
+                stopped |= bad
+                continue
+            val = np.array([s[1] for s in samples], dtype=np.int64)
             held = np.where(known, val[np.maximum(k, 0)], -1)
             if msgtype == _SAFETY_MODE:
                 bad = known & np.isin(held, list(SAFETY_STOPPED))
@@ -410,14 +462,15 @@ class _BagLoader:
             t, v, num = t[keep], v[keep], num[keep]
             bits = None if bits is None else bits[keep]
             mode = None if mode is None else mode[keep]
+            self.speed = None if self.speed is None else self.speed[keep]
             if t.size == 0:
                 raise LogFormatError(f"{self.path}: {self.topic}: every message is in a stop")
-        dt = np.diff(t)
-        if dt.size and np.any(dt > GAP_NOTE_FACTOR * np.median(dt)):
-            k = int(np.argmax(dt > GAP_NOTE_FACTOR * np.median(dt)))
-            n_gaps = int(np.count_nonzero(dt > GAP_NOTE_FACTOR * np.median(dt)))
-            self.notes.append(f"{self.where(num[k])}: {n_gaps} gap(s) in {self.topic}, the first "
-                              f"{dt[k]:.4g} s long (median period {np.median(dt):.4g} s)")
+        speed = self._speed_report()
+        period = nominal_period(t)
+        gaps = find_gaps(t, period)
+        if gaps:  # the consumers' gap rule; a stop's hole is one too (check_log_usable knows)
+            self.notes.append(f"{self.where(num[gaps[0].index - 1])}: {self.topic}: "
+                              f"{describe_gaps(gaps)} (period {period:.4g} s)")
         q, qd, eff = v[:, :N_JOINTS], v[:, N_JOINTS:2 * N_JOINTS], v[:, 2 * N_JOINTS:]
         tau = None
         current = eff
@@ -427,6 +480,7 @@ class _BagLoader:
             "time_source": self.time_source, "rows": list(self.rows) if self.rows else None,
             "first_line": int(num[0]), "last_line": int(num[-1]),
             "duplicates_removed": self.duplicates, "excluded": excluded, "notes": self.notes,
+            "speed_scaling": speed,
         }
         if self.effort == "torque":
             from urident.model import load_robot
@@ -443,10 +497,26 @@ class _BagLoader:
             dropped["count"] += extra
             dropped["reasons"]["other publisher"] = extra
         metadata["dropped"] = dropped
-        rate = float(f"{1.0 / np.median(np.diff(t)):.6g}") if t.size > 1 else None
+        rate = float(f"{1.0 / period:.6g}") if period else None
         return Recording(t=t, q=q, qd=qd, current=current, tau=tau, source=self.path,
                          robot=self.robot, rate_hz=rate, metadata=metadata,
                          safety_status_bits=bits, robot_mode=mode)
+
+    def _speed_report(self) -> dict | None:
+        """Speed scaling over the samples kept: metadata and a note (None without the topic)."""
+        topic = self.speed_topic
+        if topic is None:
+            return None
+        held = self.speed[np.isfinite(self.speed)] if self.speed is not None else np.array([])
+        if held.size == 0:
+            self.notes.append(f"{self.path}: {topic} has no message before or during the "
+                              f"{self.topic} messages kept")
+            return {"topic": topic, "min_percent": None, "max_percent": None}
+        lo, hi = 100.0 * float(held.min()), 100.0 * float(held.max())
+        unit = "percent" if self.speed_unit == 100.0 else "fraction"
+        self.notes.append(f"{self.path}: speed scaling {lo:.4g}–{hi:.4g} % over the samples kept "
+                          f"({topic}, in {unit})")
+        return {"topic": topic, "min_percent": lo, "max_percent": hi, "unit": unit}
 
 
 # --------------------------------------------------------------------------------------- output
