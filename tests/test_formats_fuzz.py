@@ -139,3 +139,15 @@ def test_a_key_written_twice_is_always_rejected(tmp_path, params_text, name, pic
         loader(path)
     message = str(info.value)
     assert re.match(rf"^{re.escape(str(path))}:\d+: (\S+\.)?{re.escape(key)}(\S*)?: duplicate key$", message), message
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_an_integer_too_large_for_a_float_fails_in_one_line(name, params_text, tmp_path):
+    """Hypothesis found it once in the prediction file: YAML reads 10**400 as an int that float() refuses."""
+    text, loader = _formats(params_text)[name]
+    data = yaml.safe_load(text)
+    for path in key_paths(data, max_items=2):
+        node = _replace(yaml.safe_load(text), path, 10**400)
+        target = tmp_path / f"{name}.yaml"
+        target.write_text(yaml.safe_dump(node))
+        _check(loader, target)

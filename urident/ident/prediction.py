@@ -266,7 +266,7 @@ def load_prediction_params(path: str | Path, spec) -> IdentifiedModel:
         values = np.asarray(data, dtype=float).reshape(-1)
     except ConfigError:
         raise
-    except (ValueError, TypeError, OSError) as exc:
+    except (ValueError, TypeError, OverflowError, OSError) as exc:
         raise ConfigError(f"{path}: cannot read a parameter vector ({exc})") from None
     if values.size == 0:
         raise ConfigError(f"{path}: no parameter values")
