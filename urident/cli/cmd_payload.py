@@ -98,6 +98,9 @@ def run(args: argparse.Namespace) -> int:
              f"  identifiable: {', '.join(est.consistent.identifiable)}",
              ("  not identifiable (fixed: first moments 0, inertia a point mass's): " + ", ".join(fixed))
              if fixed else "  every parameter identifiable",
+             *([] if unloaded is not None else
+               ["  (the inertia needs --unloaded, a run of the same trajectory without the tool: the arm "
+                "model's own last-body error is of the order of a tool's inertia)"]),
              "  fit rms_nm arm alone   " + " ".join(f"{v:6.2f}" for v in est.train_rms_arm)
              + f"  e_N {est.train_e_n_arm:.4f}",
              "  fit rms_nm with payload " + " ".join(f"{v:6.2f}" for v in est.train_rms)
