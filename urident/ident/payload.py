@@ -423,7 +423,9 @@ def estimate_payload(params, spec, data, mass_range=None, regularisation: float 
     and each joint's friction and offset, :func:`_nuisance`) are then fit jointly on both and
     removed: what is left in the loaded run is the tool's alone. Without a tare the inertia is
     never reported identifiable: the arm's own last-body inertia error, which no σ sees, is of the
-    order of a tool's (0.03 kg·m² on the simulated UR10e, README)."""
+    order of a tool's (0.03 kg·m² on the simulated UR10e, README); its columns are then fit as
+    nuisance (so that error does not bias the mass and centre of mass) and the inertia reported is
+    a point mass's."""
     from urident.ident.design import nominal_link_torque
     from urident.ident.estimate_consistent import DEFAULT_REGULARISATION
     from urident.ident.identify import predict_prepared
@@ -458,7 +460,10 @@ def estimate_payload(params, spec, data, mass_range=None, regularisation: float 
         extra = None if phi is None else _induced(data, link, (a @ phi).reshape(-1, 6))
         if extra is not None and unloaded is not None:
             extra = np.vstack([extra, np.zeros((6 * len(unloaded), extra.shape[1]))])
-        parts = [x for x in (nuisance, extra) if x is not None]
+        # without a tare the inertia columns stay in the fit (they absorb the arm's own last-body
+        # inertia error, which would bias the mass and centre of mass) but are never reported
+        own = None if unloaded is not None else a[:, 4:10]
+        parts = [x for x in (nuisance, extra, own) if x is not None]
         phi, sigma, free, weights, aw, yw = _select(a_fit, y_fit, np.hstack(parts) if parts else None, n_rows,
                                                     inertia=unloaded is not None)
     ew = aw @ phi - yw
