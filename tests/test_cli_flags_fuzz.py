@@ -39,7 +39,7 @@ BASE = {
 FREE_TEXT = {"--robot", "--out", "--out-root", "--trajectory", "--config", "--params", "--urdf",
              "--report", "--png", "--json-out", "--save", "--host", "--effects", "--ident",
              "--valid", "--rerun", "--bag", "--mjcf", "--name", "--sim", "--write-sim", "--payload",
-             "--without", "--with", "--tool-capsule-from", "--check", "--start-near"}
+             "--without", "--with", "--tool-capsule-from", "--check", "--start-near", "--unloaded"}
 # text no validator accepts
 ALWAYS_BAD = ["nan", "inf", "-inf", "NaN", "abc", "", " ", "1e999", "1,2,3,4,5", "0x1g", "1;2"]
 
@@ -120,6 +120,8 @@ def _bad_values(action: argparse.Action) -> st.SearchStrategy[str]:
                          st.text(string.ascii_lowercase, min_size=1, max_size=8).map(lambda t: "zz" + t))
     if kind == "com_vector":
         return st.one_of(always, st.sampled_from(["1,2", "1,2,3,4", "1,nan,2"]))
+    if kind == "tool_capsule":
+        return st.one_of(always, st.sampled_from(["0.05", "0,0.1", "-0.05,0.1", "0.05,-0.1", "0.05,nan"]))
     if kind == "mass_range":
         return st.one_of(always, st.sampled_from(["2,1", "0,1", "-1,2", "1", "1,nan"]))
     if kind == "_parse_version":

@@ -116,3 +116,15 @@ def test_for_payload_without_a_tool_size_and_bad_tool_in_a_file(tmp_path, capsys
     bad = _with_tool(IDENT, tmp_path / "neg.yaml", -0.1, 0.5)
     with pytest.raises(ConfigError, match=r"neg.yaml: tool_capsule.radius_m"):
         load_trajectory(bad)
+
+
+def test_shipped_payload_trajectory_is_safe_with_its_tool_and_within_the_tracking_monitor():
+    from urident.session.config import MonitorConfig, ServoConfig
+
+    loaded = load_trajectory(ROOT / "experiments" / "ur10e_payload.yaml")
+    assert loaded.tool is not None and loaded.optimization["for_payload"] is True
+    report = check_trajectory(loaded.spec, loaded.trajectory, limits=loaded.limits, collision_backend="numpy")
+    assert report.ok and any("tool_0" in n for n in report.pair_names)
+    _, qd, _ = loaded.trajectory.evaluate(np.linspace(0.0, loaded.trajectory.duration, 20001))
+    assert np.abs(qd).max() * ServoConfig().lookahead_time_s < 0.95 * MonitorConfig().max_tracking_error_rad
+    assert _cond(loaded) < 0.75 * _cond(load_trajectory(IDENT))

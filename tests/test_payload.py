@@ -237,3 +237,19 @@ def test_drive_gains_from_a_known_load(tmp_path, capsys):
     bad.write_text(gains.read_text().replace("format: urident-drive-gains", "format: other"))
     _one_line_exit2(capsys, ["identify", str(tmp_path / "without.csv"), "--robot", "ur5", "--out",
                              str(tmp_path / "q.yaml"), "--drive-gains", str(bad)], "--drive-gains")
+
+
+def test_payload_with_a_tare_run_of_the_same_trajectory(runs, capsys):
+    """``--unloaded``: the arm model's own errors on that motion are fit on both runs and removed."""
+    js = runs / "tare.json"
+    capsys.readouterr()
+    assert main(["payload", str(runs / "load_ident.csv"), "--params", str(runs / "arm_params.yaml"),
+                 "--unloaded", str(runs / "arm.csv"), "--out", str(runs / "tare.yaml"), "--json-out", str(js)]) == 0
+    assert "tare: 1 unloaded log(s)" in capsys.readouterr().out
+    data = json.loads(js.read_text())
+    assert abs(data["mass_kg"] - MASS) < 0.02 * MASS
+    assert np.max(np.abs(np.array(data["com_m"]) - COM)) < 0.003
+    assert data["fit"]["unloaded_logs"] == [str(runs / "arm.csv")]
+    _one_line_exit2(capsys, ["payload", str(runs / "load.csv"), "--params", str(runs / "arm_params.yaml"),
+                             "--unloaded", str(runs / "still.csv"), "--out", str(runs / "x.yaml")],
+                    "unloaded logs: the wrist joints")

@@ -8,11 +8,13 @@ import sys
 
 from urident.cli import options
 
-POLYSCOPE_NOTE = ("UR's script manual (software 10.6, e-Series G5 page) documents "
-                  "set_target_payload(m, cog, inertia=[0, 0, 0, 0, 0, 0], transition_time=0): the "
-                  "inertia is optional, about the centre of mass with flange axes, Ixx..Izz >= 0; it "
-                  "replaces the deprecated set_payload(m, cog), which takes no inertia: use that on a "
-                  "controller whose script manual lacks set_target_payload")
+POLYSCOPE_NOTE = ("the inertia argument: UR's script manual for software 10.6 (PolyScope X; "
+                  "manuals/EN/HTML/SW10_6/Content/prod-scriptmanual/G5/set_target_payload.htm) documents set_target_payload(m, cog, inertia=[0, 0, 0, 0, 0, 0], "
+                  "transition_time=0), inertia about the centre of mass with flange axes, Ixx..Izz >= 0; "
+                  "ur_rtde 1.6.5's control script sends set_target_payload(mass, cog, inertia) only to "
+                  "e-Series controllers of software 5.10 or later (its lines tagged $5.10) and "
+                  "set_payload(mass, cog), which takes no inertia, to older ones: on PolyScope 5 before "
+                  "5.10 and on CB3 (3.x, no evidence found) use set_payload(m, [cx, cy, cz])")
 
 
 def mass_range(text: str) -> tuple[float, float]:
@@ -96,6 +98,9 @@ def run(args: argparse.Namespace) -> int:
              f"  identifiable: {', '.join(est.consistent.identifiable)}",
              ("  not identifiable (fixed: first moments 0, inertia a point mass's): " + ", ".join(fixed))
              if fixed else "  every parameter identifiable",
+             *([] if unloaded is not None else
+               ["  (the inertia needs --unloaded, a run of the same trajectory without the tool: the arm "
+                "model's own last-body error is of the order of a tool's inertia)"]),
              "  fit rms_nm arm alone   " + " ".join(f"{v:6.2f}" for v in est.train_rms_arm)
              + f"  e_N {est.train_e_n_arm:.4f}",
              "  fit rms_nm with payload " + " ".join(f"{v:6.2f}" for v in est.train_rms)

@@ -348,10 +348,12 @@ def _induced(data, link: np.ndarray, tau_p: np.ndarray) -> np.ndarray:
     return out.reshape(-1, 12)
 
 
-def _select(a_fit: np.ndarray, y_fit: np.ndarray, nuisance: np.ndarray | None, n_rows: int):
+def _select(a_fit: np.ndarray, y_fit: np.ndarray, nuisance: np.ndarray | None, n_rows: int,
+            inertia: bool = True):
     """Per-joint weights from a first fit, then least squares with the nuisance columns projected
-    out, dropping the worst-determined parameter until every one left is within its tolerance:
-    (φ, σ, free, weights, weighted and projected a, y)."""
+    out, dropping the worst-determined parameter until every one left is within its tolerance
+    (``inertia`` False: the six inertias fixed from the start): (φ, σ, free, weights, weighted and
+    projected a, y)."""
     from urident.ident.estimate import joint_weights, row_weights
 
     # per-joint weights from a first fit: joints differ in noise and model error by 10x
@@ -368,6 +370,8 @@ def _select(a_fit: np.ndarray, y_fit: np.ndarray, nuisance: np.ndarray | None, n
     if nuisance is not None:
         aw, yw = _project_out(nuisance * rw[:, None], aw, yw)
     free = _structural(aw)
+    if not inertia:
+        free[4:10] = False
     phi = np.zeros(10)
     for _ in range(20):  # drop the worst-determined parameter until all are within tolerance
         for _ in range(3):   # fixed inertias follow the estimated mass and centre of mass
@@ -417,7 +421,11 @@ def estimate_payload(params, spec, data, mass_range=None, regularisation: float 
     ``unloaded``: prepared runs of the same motion without the tool (a tare). The arm model's
     own errors on that motion (its last body's parameters, which add to the payload's exactly,
     and each joint's friction and offset, :func:`_nuisance`) are then fit jointly on both and
-    removed: what is left in the loaded run is the tool's alone."""
+    removed: what is left in the loaded run is the tool's alone. Without a tare the inertia is
+    never reported identifiable: the arm's own last-body inertia error, which no σ sees, is of the
+    order of a tool's (0.03 kg·m² on the simulated UR10e, README); its columns are then fit as
+    nuisance (so that error does not bias the mass and centre of mass) and the inertia reported is
+    a point mass's."""
     from urident.ident.design import nominal_link_torque
     from urident.ident.estimate_consistent import DEFAULT_REGULARISATION
     from urident.ident.identify import predict_prepared
@@ -452,8 +460,12 @@ def estimate_payload(params, spec, data, mass_range=None, regularisation: float 
         extra = None if phi is None else _induced(data, link, (a @ phi).reshape(-1, 6))
         if extra is not None and unloaded is not None:
             extra = np.vstack([extra, np.zeros((6 * len(unloaded), extra.shape[1]))])
-        parts = [x for x in (nuisance, extra) if x is not None]
-        phi, sigma, free, weights, aw, yw = _select(a_fit, y_fit, np.hstack(parts) if parts else None, n_rows)
+        # without a tare the inertia columns stay in the fit (they absorb the arm's own last-body
+        # inertia error, which would bias the mass and centre of mass) but are never reported
+        own = None if unloaded is not None else a[:, 4:10]
+        parts = [x for x in (nuisance, extra, own) if x is not None]
+        phi, sigma, free, weights, aw, yw = _select(a_fit, y_fit, np.hstack(parts) if parts else None, n_rows,
+                                                    inertia=unloaded is not None)
     ew = aw @ phi - yw
     noise_var = max(float(ew @ ew) / max(len(yw) - int(free.sum()), 1), 1e-300)
     identifiable = tuple(name for name, f in zip(PAYLOAD_FIELDS, free) if f)

@@ -119,22 +119,35 @@ def payload_torque(spec, q, qd, qdd, payload: np.ndarray) -> np.ndarray:
 
 def estimate_drive_gains(spec, run_without, run_with, payload: np.ndarray,
                          reduced: bool = False, friction_eps: float = 0.01,
-                         offset: bool = False) -> DriveGainEstimate:
+                         offset: bool = False, load_friction: bool = True) -> DriveGainEstimate:
     """Drive gains from two runs (module doc). ``run_without``/``run_with`` are ``(q, qd, qdd,
     current)`` tuples of (N, 6) arrays; ``payload`` the payload's ten parameters about K_6
     (:func:`payload_params`); ``offset``: a constant torque per joint in the arm model (a
-    current-sensor offset or asymmetric friction, the same in both runs)."""
-    from urident.model import regressor
+    current-sensor offset or asymmetric friction, the same in both runs); ``load_friction``: the
+    friction the known load adds, z_j·(|τ_L + τ_load| − |τ_L|) with a free coefficient per joint
+    in the loaded run (harmonic drives' Coulomb friction grows with the torque they carry; left
+    out, it grows with the load like a gain and biases it)."""
+    from urident.model import regressor, regressor_blocks
     from urident.model.base import base_parameters
 
     base = base_parameters(spec, reduced)
-    b = base.n_base + (6 if offset else 0)
+    b = base.n_base + (6 if offset else 0) + (6 if load_friction else 0)
     wbs, currents, rhs = [], [], []
     for k, run in enumerate((run_without, run_with)):
         q, qd, qdd, current = (np.asarray(x, dtype=float) for x in run)
         wb = base.columns(regressor(spec, q, qd, qdd, friction_eps))
         if offset:
             wb = np.hstack([wb, np.tile(np.eye(6), (q.shape[0], 1))])
+        if load_friction:
+            extra = np.zeros((q.shape[0], 6, 6))
+            if k == 1:
+                from urident.ident.features import link_torque
+
+                link = link_torque(regressor_blocks(spec, q, qd, qdd, friction_eps), spec.nominal_params)
+                tau_load = payload_torque(spec, q, qd, qdd, payload)
+                j = np.arange(6)
+                extra[:, j, j] = np.tanh(qd / friction_eps) * (np.abs(link + tau_load) - np.abs(link))
+            wb = np.hstack([wb, extra.reshape(-1, 6)])
         wbs.append(wb)
         currents.append(current)
         rhs.append(np.zeros(current.size) if k == 0
