@@ -41,11 +41,14 @@ def _compact(cands, ctx, first_col: int = 0):
         f = c.features(ctx)
         slices[c] = slice(col, col + c.k)
         for j in touched(f):
-            parts[j].append(f[:, j, :])
+            parts[j].append(f[:, j, :].copy())     # a copy: the (N, 6, k) array is freed
             index[j].append(np.arange(col, col + c.k))
         col += c.k
         del f
-    cols = {j: (np.hstack(parts[j]) if parts[j] else None) for j in range(6)}
+    cols = {}
+    for j in range(6):
+        cols[j] = np.hstack(parts[j]) if parts[j] else None
+        parts[j] = None
     idx = {j: (np.concatenate(index[j]) if index[j] else np.zeros(0, int)) for j in range(6)}
     return cols, idx, slices, col
 
