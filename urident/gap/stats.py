@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from urident.ident.reduced import _triangle, one_blas_thread
+from urident.ident.reduced import triangle, one_blas_thread
 
 
 def touched(f: np.ndarray) -> np.ndarray:
@@ -70,7 +70,7 @@ class IdentFactors:
                 for j in range(6):
                     parts = [blocks[:, j, :]] + ([] if cols[j] is None else [cols[j][a:b]]) + [r[a:b, j, None]]
                     x = np.hstack(parts)
-                    fac[j] = _triangle(np.vstack([fac[j], x]), m[j])
+                    fac[j] = triangle(np.vstack([fac[j], x]), m[j])
         self.factors = fac
         # where each candidate's columns sit in each joint's factor
         self.where = {c: {} for c in self.cands}
@@ -114,7 +114,7 @@ class IdentStats:
             e = np.zeros((fac.shape[0], total))
             e[:, dst] = fac[:, src]
             rows.append(e)
-        rr = _triangle(np.vstack(rows), total)
+        rr = triangle(np.vstack(rows), total)
         self.p, self.k = p, k
         from scipy.linalg import solve_triangular
 
