@@ -50,8 +50,7 @@ def controller_reference(ctx: SetContext, ident: SetContext | None = None) -> di
            "change_between_runs": None}
     tm_i = None if ident is None else _target_moment(ident)
     if tm_i is not None:
-        beta = _fit_design(ident, tm_i)
-        fit_err = _rms(tm_i - ident.design_product(beta))
+        beta, fit_err = _fit_design(ident, tm_i)
         change = _rms(tm - ctx.design_product(beta))
         share = change / max(float(_rms(tm).max()), 1e-12)
         changed = (share > CONTROLLER_CHANGE_SHARE) & (change > 2.0 * fit_err)
@@ -64,7 +63,8 @@ def controller_reference(ctx: SetContext, ident: SetContext | None = None) -> di
 
 def _fit_design(ctx: SetContext, y: np.ndarray) -> np.ndarray:
     """Least squares (minimum norm) of ``y`` (N, 6) on the set's design matrix, streamed: per joint
-    the R factor of [W_j | y_j] (:mod:`urident.ident.reduced`), then one merged triangle."""
+    the R factor of [W_j | y_j] (:mod:`urident.ident.reduced`), then one merged triangle; and the
+    fit's RMS error per joint."""
     from urident.ident.reduced import Accumulator
 
     acc = Accumulator()
@@ -73,7 +73,8 @@ def _fit_design(ctx: SetContext, y: np.ndarray) -> np.ndarray:
     red = acc.result()
     n = red.n_params
     r = np.linalg.qr(np.vstack(list(red.r)), mode="r")
-    return np.linalg.lstsq(r[:n, :n], r[:n, n], rcond=None)[0]
+    beta = np.linalg.lstsq(r[:n, :n], r[:n, n], rcond=None)[0]
+    return beta, np.sqrt(red.residual_sq(beta) / red.n_samples)
 
 
 def _target_moment(ctx: SetContext) -> np.ndarray | None:

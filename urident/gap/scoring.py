@@ -28,7 +28,7 @@ import numpy as np
 from urident.gap.candidates import Candidate
 from urident.gap.bootstrap import block_edges, default_block_length
 from urident.gap.residual import SetContext
-from urident.gap.stats import IdentStats, ValidStats, touched
+from urident.gap.stats import IdentFactors, IdentStats, ValidStats, touched
 
 
 def lstsq(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -63,9 +63,12 @@ class _Stats:
         self.members = set(self.cands)
         self.block = block
         ident = [c for c in self.cands if c.mode == "ident"]
-        self.ident = IdentStats(scorer.ident, ident, scorer._w_factors) if ident else None
+        self.ident = IdentStats(scorer.ident, ident, scorer._factors) if ident else None
         self.valid = ValidStats(scorer.valid, self.cands, bool(ident), scorer.fold,
                                 block_edges(scorer.valid.n, block))
+        if ident:
+            self.valid.project({c: self.ident.g_of(c) for c in ident})
+        self.valid.finish()
 
 
 @dataclass(eq=False)
@@ -152,7 +155,7 @@ class Scorer:
         self.n_folds = int(max(2, min(n_folds, n // 20)))
         self.fold = np.minimum((np.arange(n) * self.n_folds) // n, self.n_folds - 1)
         self.block = block or default_block_length(n, valid.data.sample_rate)
-        self._w_factors: dict = {}        # per joint: R factor of [W_j | r_j] (identification)
+        self._factors: IdentFactors | None = None   # identification-mode candidates' R factors
         self._stats: _Stats | None = None
         self._gains: dict[Candidate, float] = {}
 
@@ -189,22 +192,16 @@ class Scorer:
 
     # ------------------------------------------------------------- variant choice
     def prepare_gains(self, families: Sequence[Sequence[Candidate]]) -> None:
-        """:meth:`training_gain` of every variant of ``families`` with more than one, the
-        identification-mode ones from one pass per joint."""
-        by_joint: dict = {}
+        """One pass over the identification set for every identification-mode candidate of
+        ``families`` (their R factors, :class:`~urident.gap.stats.IdentFactors`), and
+        :meth:`training_gain` of every variant of the families with more than one."""
+        ident = [c for fam in families for c in fam if c.mode == "ident"]
+        if ident:
+            self._factors = IdentFactors(self.ident, ident)
         for fam in families:
             if len(fam) > 1:
                 for c in fam:
-                    if c.mode == "ident":
-                        by_joint.setdefault(c.joint, []).append(c)
-                    else:
-                        self._gains[c] = self._cv_gain(c)
-        for cands in by_joint.values():
-            st = IdentStats(self.ident, cands, self._w_factors)
-            for c in cands:
-                i = st.cols([c])
-                beta = lstsq_gram(st.gram[np.ix_(i, i)], st.fty[i])
-                self._gains[c] = float(2.0 * beta @ st.fty[i] - beta @ st.gram[np.ix_(i, i)] @ beta)
+                    self.training_gain(c)
 
     def _cv_gain(self, c: Candidate) -> float:
         f = c.features(self.valid)
@@ -218,14 +215,18 @@ class Scorer:
         return float(2.0 * beta @ xty - beta @ gram @ beta)
 
     def training_gain(self, c: Candidate) -> float:
-        """Reduction of the fitting data's squared residual by ``c`` alone (choice of variant)."""
+        """Reduction of the fitting data's squared residual by ``c`` alone (choice of variant),
+        to 12 significant digits: variants equal after the projection (e.g. temperature offsets
+        that differ by a constant, absorbed by the viscous and Coulomb columns) tie, and the
+        first one is kept, whatever the rounding."""
         if c not in self._gains:
             if c.mode == "ident":
-                st = IdentStats(self.ident, [c], self._w_factors)
+                st = IdentStats(self.ident, [c], self._factors)
                 beta = lstsq_gram(st.gram, st.fty)
-                self._gains[c] = float(2.0 * beta @ st.fty - beta @ st.gram @ beta)
+                gain = float(2.0 * beta @ st.fty - beta @ st.gram @ beta)
             else:
-                self._gains[c] = self._cv_gain(c)
+                gain = self._cv_gain(c)
+            self._gains[c] = float(f"{gain:.12g}")
         return self._gains[c]
 
     # ------------------------------------------------------------- evaluation
@@ -242,8 +243,7 @@ class Scorer:
             beta_i = lstsq_gram(st.ident.gram[np.ix_(i, i)], st.ident.fty[i])
             for c, sl in zip(ident, _slices(ident)):
                 g[c] = st.ident.g_of(c)
-                u0[vs.slices[c]] -= beta_i[sl]
-                u0[vs.w] += g[c] @ beta_i[sl]
+                u0[vs.slices[c]] -= beta_i[sl]          # the projected columns F' = C' − W'·G
         u = np.tile(u0, (len(vs.cells) - 1, 1))
         beta_c = np.zeros(0)
         folds = None

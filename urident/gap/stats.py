@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from urident.ident.reduced import _triangle
+from urident.ident.reduced import triangle, one_blas_thread
 
 
 def touched(f: np.ndarray) -> np.ndarray:
@@ -41,47 +41,80 @@ def _compact(cands, ctx, first_col: int = 0):
         f = c.features(ctx)
         slices[c] = slice(col, col + c.k)
         for j in touched(f):
-            parts[j].append(f[:, j, :])
+            parts[j].append(f[:, j, :].copy())     # a copy: the (N, 6, k) array is freed
             index[j].append(np.arange(col, col + c.k))
         col += c.k
         del f
-    cols = {j: (np.hstack(parts[j]) if parts[j] else None) for j in range(6)}
+    cols = {}
+    for j in range(6):
+        cols[j] = np.hstack(parts[j]) if parts[j] else None
+        parts[j] = None
     idx = {j: (np.concatenate(index[j]) if index[j] else np.zeros(0, int)) for j in range(6)}
     return cols, idx, slices, col
 
 
-class IdentStats:
-    """Identification-mode candidates ``cands`` on the identification set ``ctx`` (module doc)."""
+class IdentFactors:
+    """Per joint the R factor of [W_j | C_j | r_j] for identification-mode candidates ``cands``
+    (one pass over the set): the :class:`IdentStats` of any subset of them follow without
+    another pass (a column subset of Q·R is Q times the same columns of R)."""
 
-    def __init__(self, ctx, cands, w_factors: dict | None = None):
+    def __init__(self, ctx, cands):
         self.cands = list(cands)
+        self.p = p = ctx.n_params
+        cols, idx, slices, _ = _compact(self.cands, ctx, p)
         r = ctx.residual
-        p = ctx.n_params
-        cols, idx, self.slices, end = _compact(self.cands, ctx, p)
-        k = end - p
-        factors = {}
-        have = w_factors if w_factors is not None else {}
-        for j in range(6):
-            if cols[j] is not None or j not in have:
-                factors[j] = np.zeros((0, p + (0 if cols[j] is None else cols[j].shape[1]) + 1))
-        if factors:
+        m = {j: p + (0 if cols[j] is None else cols[j].shape[1]) + 1 for j in range(6)}
+        fac = {j: np.zeros((0, m[j])) for j in range(6)}
+        with one_blas_thread():
             for a, b, blocks in ctx.chunks():
-                for j, fac in factors.items():
+                for j in range(6):
                     parts = [blocks[:, j, :]] + ([] if cols[j] is None else [cols[j][a:b]]) + [r[a:b, j, None]]
                     x = np.hstack(parts)
-                    factors[j] = _triangle(np.vstack([fac, x]), x.shape[1])
+                    fac[j] = triangle(np.vstack([fac[j], x]), m[j])
+        self.factors = fac
+        # where each candidate's columns sit in each joint's factor
+        self.where = {c: {} for c in self.cands}
         for j in range(6):
-            if cols[j] is None and j in factors:
-                have[j] = factors[j]          # baseline-only factor of this joint: reusable
+            for pos, g in enumerate(idx[j]):
+                for c, sl in slices.items():
+                    if sl.start <= g < sl.stop:
+                        self.where[c].setdefault(j, []).append((g - sl.start, p + pos))
+                        break
+
+    def covers(self, cands) -> bool:
+        return all(c in self.where for c in cands)
+
+
+class IdentStats:
+    """Identification-mode candidates ``cands`` on the identification set ``ctx`` (module doc),
+    from ``factors`` (:class:`IdentFactors` covering them) or one pass of their own."""
+
+    def __init__(self, ctx, cands, factors: IdentFactors | None = None):
+        self.cands = list(cands)
+        if factors is None or not factors.covers(self.cands):
+            factors = IdentFactors(ctx, self.cands)
+        p = factors.p
+        self.slices, col = {}, p
+        for c in self.cands:
+            self.slices[c] = slice(col, col + c.k)
+            col += c.k
+        k = col - p
         total = p + k + 1
         rows = []
         for j in range(6):
-            fac = factors[j] if j in factors else have[j]
-            act = np.r_[np.arange(p), idx[j], total - 1]
+            fac = factors.factors[j]
+            src = list(range(p))
+            dst = list(range(p))
+            for c in self.cands:
+                for i, pos in factors.where[c].get(j, []):
+                    src.append(pos)
+                    dst.append(self.slices[c].start + i)
+            src.append(fac.shape[1] - 1)
+            dst.append(total - 1)
             e = np.zeros((fac.shape[0], total))
-            e[:, act] = fac
+            e[:, dst] = fac[:, src]
             rows.append(e)
-        rr = _triangle(np.vstack(rows), total)
+        rr = triangle(np.vstack(rows), total)
         self.p, self.k = p, k
         from scipy.linalg import solve_triangular
 
@@ -124,11 +157,16 @@ class ValidStats:
         self.r = end + p
         d = end + p + 1
         self.d = d
-        s_count = len(self.cells) - 1
-        m = np.zeros((s_count, 6, d, d))
+        m = np.zeros((len(self.cells) - 1, 6, d, d))
         r0 = ctx.residual
         act = {j: np.r_[idx[j], np.arange(end, end + p), d - 1] for j in range(6)}
         chunks = ctx.chunks() if need_w else ((a, min(a + 8192, n), None) for a in range(0, n, 8192))
+        with one_blas_thread():
+            self._accumulate(chunks, cols, act, r0, m, need_w)
+        self.m = m
+
+    def _accumulate(self, chunks, cols, act, r0, m, need_w) -> None:
+        s_count = m.shape[0]
         for a, b, blocks in chunks:
             first = int(np.searchsorted(self.cells, a, side="right") - 1)
             s = first
@@ -142,9 +180,25 @@ class ValidStats:
                     x = np.hstack(parts)
                     m[s, j][np.ix_(act[j], act[j])] += x.T @ x
                 s += 1
-        self.m = m
-        self.m_cell = m.sum(axis=1)                  # (S, D, D) over joints
-        self.m_total = self.m_cell.sum(axis=0)       # (D, D)
+
+    def project(self, g: dict) -> None:
+        """Replace the design columns W' by the identification-mode candidates' projected columns
+        F' = C' − W'·G (``g``: candidate → G): fits then need only the candidates' columns."""
+        d = self.r + 1
+        keep = np.r_[np.arange(self.w.start), self.r]
+        t = np.zeros((d, len(keep)))
+        t[keep, np.arange(len(keep))] = 1.0
+        for c, gc in g.items():
+            t[self.w, self.slices[c]] = -gc
+        self.m = np.matmul(np.matmul(t.T, self.m), t)
+        self.r = len(keep) - 1
+        self.d = len(keep)
+        self.w = slice(self.r, self.r)
+        self.need_w = False
+
+    def finish(self) -> None:
+        self.m_cell = self.m.sum(axis=1)                  # (S, D, D) over joints
+        self.m_total = self.m_cell.sum(axis=0)            # (D, D)
 
     def cols(self, cands) -> np.ndarray:
         if not cands:
@@ -158,11 +212,16 @@ class ValidStats:
 
     def cell_ss(self, u: np.ndarray) -> np.ndarray:
         """(S, 6) Σ over each cell's samples of the squared series X·u (``u`` (S, D), per cell)."""
-        return np.einsum("sd,sjde,se->sj", u, self.m, u, optimize=True)
+        i = np.flatnonzero(np.any(u != 0, axis=0))
+        sub = self.m[:, :, i[:, None], i[None, :]]
+        ui = u[:, i]
+        return np.einsum("sd,sjde,se->sj", ui, sub, ui)
 
     def cross(self, u: np.ndarray, v: np.ndarray) -> float:
         """Σ over all samples and joints of (X·u)·(X·v)."""
-        return float(np.einsum("sd,sde,se->", u, self.m_cell, v, optimize=True))
+        i = np.flatnonzero(np.any(u != 0, axis=0) | np.any(v != 0, axis=0))
+        sub = self.m_cell[:, i[:, None], i[None, :]]
+        return float(np.einsum("sd,sde,se->", u[:, i], sub, v[:, i]))
 
     def block_sums(self, x: np.ndarray) -> np.ndarray:
         """(M, ...) sums over the bootstrap blocks of per-cell values ``x`` (S, ...)."""

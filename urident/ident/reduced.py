@@ -52,7 +52,8 @@ def one_blas_thread():
         fns[1](before)
 
 
-def _triangle(a: np.ndarray, n_cols: int) -> np.ndarray:
+def triangle(a: np.ndarray, n_cols: int) -> np.ndarray:
+    """The (n_cols, n_cols) R factor of ``a`` (zero rows added while ``a`` has fewer rows)."""
     with one_blas_thread():
         r = np.linalg.qr(a, mode="r")
     if r.shape[0] < n_cols:   # fewer rows than columns so far
@@ -92,14 +93,14 @@ class ReducedLS:
         n = self.n_params
         cols = np.r_[np.arange(n), n + target]
         stacked = np.vstack([w * rj[:, cols] for w, rj in zip(np.asarray(weights, float), self.r)])
-        r = _triangle(stacked, n + 1)
+        r = triangle(stacked, n + 1)
         return r[:n, :n], r[:n, n]
 
     def select(self, target: int) -> "ReducedLS":
         """The same problem with only torque column ``target``."""
         n = self.n_params
         cols = np.r_[np.arange(n), n + target]
-        r = np.stack([_triangle(rj[:, cols], n + 1) for rj in self.r])
+        r = np.stack([triangle(rj[:, cols], n + 1) for rj in self.r])
         return ReducedLS(r, self.n_samples, n)
 
 
@@ -109,7 +110,7 @@ def merge(parts) -> ReducedLS:
     if not parts:
         raise ValueError("nothing to merge")
     m = parts[0].r.shape[1]
-    r = np.stack([_triangle(np.vstack([p.r[j] for p in parts]), m) for j in range(6)])
+    r = np.stack([triangle(np.vstack([p.r[j] for p in parts]), m) for j in range(6)])
     return ReducedLS(r, sum(p.n_samples for p in parts), parts[0].n_params)
 
 
@@ -132,7 +133,7 @@ class Accumulator:
         m = self._r[0].shape[1]
         for j in range(6):
             a = np.hstack([blocks[:, j, :], targets[:, j, :]])
-            self._r[j] = _triangle(np.vstack([self._r[j], a]), m)
+            self._r[j] = triangle(np.vstack([self._r[j], a]), m)
         self.n_samples += blocks.shape[0]
 
     def result(self) -> ReducedLS:
