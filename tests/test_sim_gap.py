@@ -154,7 +154,7 @@ def test_gap_sim_names_the_missing_drive_terms_and_mujoco_measures_the_written_m
     first = doc["findings"][0]
     assert first["effect"] in ("frictionloss", "damping", "armature") and first["expressible"] is True
     for f in doc["findings"]:
-        assert f["expressible"] == (f["effect"] in ("armature", "damping", "frictionloss", "rigid_body",
+        assert f["expressible"] == (f["effect"] in ("armature", "damping", "frictionloss", "rigid_body", "link_inertia",
                                                     "payload_error"))
     # values of the final joint fit, where both terms of a joint were found: within 10 % of the truth
     found = {(f["effect"], f["joint"]): f["final_magnitude"] for f in doc["findings"]}

@@ -21,7 +21,7 @@ from urident.errors import ConfigError
 from urident.model.parameters import COULOMB, N_PARAMS, ROTOR, VISCOUS, body_slice, inertia_tensor
 
 
-def _rpy(rotation: np.ndarray) -> np.ndarray:
+def matrix_rpy(rotation: np.ndarray) -> np.ndarray:
     import pinocchio as pin
 
     return np.asarray(pin.rpy.matrixToRpy(np.asarray(rotation, dtype=float)))
@@ -85,7 +85,7 @@ def _collision(capsules, indent: str) -> list[str]:
             x /= np.linalg.norm(x)
             rot = np.column_stack([x, np.cross(z, x), z])
             mid = (np.asarray(c.a, float) + np.asarray(c.b, float)) / 2
-            out += [f"{indent}<collision>", f'{indent}  <origin xyz="{_fmt(mid)}" rpy="{_fmt(_rpy(rot))}"/>',
+            out += [f"{indent}<collision>", f'{indent}  <origin xyz="{_fmt(mid)}" rpy="{_fmt(matrix_rpy(rot))}"/>',
                     f'{indent}  <geometry><cylinder radius="{c.radius:.12g}" length="{length:.12g}"/></geometry>',
                     f"{indent}</collision>"]
         for end in ends:
@@ -131,7 +131,7 @@ def to_urdf(spec, standard: np.ndarray, name: str | None = None, notes=(), paylo
                 *_collision(joint.collision, "    "), "  </link>",
                 f'  <joint name="{joint.name}" type="revolute">',
                 f'    <parent link="{parent}"/>', f'    <child link="{link}"/>',
-                f'    <origin xyz="{_fmt(joint.xyz)}" rpy="{_fmt(_rpy(joint.rotation))}"/>',
+                f'    <origin xyz="{_fmt(joint.xyz)}" rpy="{_fmt(matrix_rpy(joint.rotation))}"/>',
                 f'    <axis xyz="{axes[joint.axis]}"/>',
                 f'    <limit lower="{joint.q_min:.12g}" upper="{joint.q_max:.12g}" '
                 f'effort="{joint.tau_max:.12g}" velocity="{joint.qd_max:.12g}"/>',
@@ -140,7 +140,7 @@ def to_urdf(spec, standard: np.ndarray, name: str | None = None, notes=(), paylo
         parent = link
     out += ['  <link name="tool0"/>', '  <joint name="tool0_fixed" type="fixed">',
             f'    <parent link="{parent}"/>', '    <child link="tool0"/>',
-            f'    <origin xyz="{_fmt(spec.tool_xyz)}" rpy="{_fmt(_rpy(spec.tool_rotation))}"/>',
+            f'    <origin xyz="{_fmt(spec.tool_xyz)}" rpy="{_fmt(matrix_rpy(spec.tool_rotation))}"/>',
             "  </joint>"]
     if payload is not None:
         out += payload_link(payload)

@@ -129,7 +129,7 @@ def _mjcf_text(sim, spec, changes: dict, notes) -> str:
 def _urdf_text(sim, spec, changes: dict, notes) -> str:
     import pinocchio as pin
 
-    from urident.ident.urdf import _rpy, payload_link
+    from urident.ident.urdf import matrix_rpy, payload_link
     from urident.model.kinematics import frame_poses
     from urident.model.robot import rpy_to_matrix
 
@@ -188,7 +188,7 @@ def _urdf_text(sim, spec, changes: dict, notes) -> str:
         last = root.find(f"joint[@name='{sim.joint_names[-1]}']").find("child").get("link")
         frame = data.oMi[len(sim.joint_names)]
         xyz = frame.rotation.T @ (pos[0, 6] - frame.translation)
-        rpy = _rpy(frame.rotation.T @ rot[0, 6])
+        rpy = matrix_rpy(frame.rotation.T @ rot[0, 6])
         for old in [e for e in root if e.get("name") in ("payload", "payload_fixed")]:
             root.remove(old)
         from urident.ident.payload import Payload
