@@ -17,7 +17,8 @@ from urident.session.dashboard import ensure_stopped
 
 # ur_rtde clients whose connection broke: ur_rtde crashes (SIGSEGV) when such an object is sent
 # commands, disconnected or destroyed while its reconnect thread runs, so they are kept here for
-# the life of the process, and the console script ends with os._exit (see urident.cli.main).
+# the life of the process, which ends with os._exit (urident.session.supervisor's session
+# process; urident.cli.main for a session run in the console script's own process).
 _ABANDONED: list = []
 
 
