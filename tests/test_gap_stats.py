@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.test_gap_diagnose import FAST, simulate, sines
+from test_gap_diagnose import FAST, simulate, sines
 from urident.gap.bootstrap import block_bootstrap_means, default_block_length, interval
 from urident.gap.data import build_set
 from urident.gap.residual import fit_baseline, make_context
