@@ -7,8 +7,8 @@ at once; DDS batching of receive times). Write r_k = (t_k − t_0)/T − k, the 
 ahead of the grid: jitter moves r up and back, a lost sample steps it up by one for good. So an
 interval longer than :data:`GAP_FACTOR`·T is only a candidate. The samples after it that follow
 at less than :data:`CATCH_UP`·T are the catch-up; where they end the timing has settled. The
-candidate is a gap of ``m`` missing periods when the median of r over :data:`LEVEL_WINDOW`
-settled samples after it exceeds the median over those before it by ``m`` (rounded, ≥ 1, at most
+candidate is a gap of ``m`` missing periods when the level of r over :data:`LEVEL_WINDOW`
+settled samples after it exceeds the level over those before it by ``m`` (rounded, ≥ 1, at most
 what the stretch leaves room for; candidates in order, each gap's step removed from r after it).
 A late sample followed by a short interval, a stall the loop catches up, a burst of bunched
 receive times, is jitter, not a gap. A gap lies in its candidate interval when that interval
@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 GAP_FACTOR = 1.5
-#: samples each side whose median level judges a candidate
+#: samples each side whose level (see LEVEL_QUANTILE) judges a candidate
 LEVEL_WINDOW = 25
 #: the level of a window is this quantile of its r (jitter delays stamps far more than it advances them)
 LEVEL_QUANTILE = 0.1

@@ -14,8 +14,8 @@ confirmation question (the caller asks the operator on its own terminal and send
 back), stage messages (the control script may start, the log path, the stop reason), a
 heartbeat during motion, the live view's samples (fixed-size records written without blocking
 to a pipe of their own: the control loop never waits for the caller, and no thread of ours runs
-beside ur_rtde's, which made its crashes after a lost link more frequent) and finally the result or the error; to the child,
-the answer and a stop request when the caller's live view fails. The log's recorder is the
+beside ur_rtde's, which made its crashes after a lost link more frequent) and finally the result
+or the error; to the child, the answer and a stop request when the caller's live view fails. The log's recorder is the
 child's own child and keeps its guarantees (:mod:`urident.session.recorder`).
 """
 
