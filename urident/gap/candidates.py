@@ -77,6 +77,9 @@ class Candidate:
     columns: tuple[str, ...]
     build: Callable[[SetContext], np.ndarray] = field(repr=False)   # → (N, 6, k)
     settings: dict = field(default_factory=dict)
+    #: the columns on the rows of ``joint`` alone (each (N,) or a scalar), the other rows zero;
+    #: None: only ``build`` (the fits then scan its rows for the joints it touches)
+    on_joint: Callable[[SetContext], list] | None = field(default=None, repr=False)
 
     @property
     def key(self) -> tuple[str, int | None]:
@@ -97,6 +100,13 @@ class Candidate:
         f = np.asarray(self.build(ctx), float)
         assert f.shape == (ctx.n, 6, self.k), (self.name, f.shape)
         return f
+
+    def joint_columns(self, ctx: SetContext) -> np.ndarray | None:
+        """(N, k) the columns on the rows of ``joint`` (:attr:`on_joint`; the same numbers as
+        ``features(ctx)[:, joint]``, without the (N, 6, k) array), or None."""
+        if self.on_joint is None:
+            return None
+        return np.stack([np.asarray(c, float) * np.ones(ctx.n) for c in self.on_joint(ctx)], axis=1)
 
     def magnitude(self, beta: np.ndarray, spec=None) -> dict:
         """The fitted coefficients in the effect's own terms."""
@@ -134,6 +144,13 @@ class Candidate:
         return out
 
 
+def _joint(effect: str, j: int, variant: str, mode: str, columns: tuple[str, ...], cols,
+           settings: dict | None = None) -> Candidate:
+    """A candidate on the rows of joint ``j`` alone: ``cols(ctx)`` its columns there."""
+    return Candidate(effect, j, variant, mode, columns, lambda ctx: _on_joint(ctx, j, cols(ctx)),
+                     settings or {}, cols)
+
+
 def _on_joint(ctx: SetContext, j: int, cols) -> np.ndarray:
     cols = [np.asarray(c, float) * np.ones(ctx.n) for c in cols]
     out = np.zeros((ctx.n, 6, len(cols)))
@@ -154,21 +171,21 @@ def _segment_first(ctx: SetContext, x: np.ndarray) -> np.ndarray:
 
 
 def stribeck(j: int, vs: float, mode: str = "ident") -> Candidate:
-    def build(ctx):
-        return _on_joint(ctx, j, [features.stribeck(ctx.qd[:, j], ctx.friction_eps, vs)])
-    return Candidate("stribeck", j, f"v_s={vs:g} rad/s", mode, ("exp(-(qd/vs)^2)*sign(qd)",), build,
-                     {"vs": vs})
+    def cols(ctx):
+        return [features.stribeck(ctx.qd[:, j], ctx.friction_eps, vs)]
+    return _joint("stribeck", j, f"v_s={vs:g} rad/s", mode, ("exp(-(qd/vs)^2)*sign(qd)",), cols,
+                  {"vs": vs})
 
 
 def load_friction(j: int, mode: str = "ident") -> Candidate:
-    def build(ctx):
-        return _on_joint(ctx, j, [features.load_friction(ctx.tau_link[:, j], ctx.sign()[:, j])])
-    return Candidate("load_friction", j, "", mode, ("|tau_link|*sign(qd)",), build)
+    def cols(ctx):
+        return [features.load_friction(ctx.tau_link[:, j], ctx.sign()[:, j])]
+    return _joint("load_friction", j, "", mode, ("|tau_link|*sign(qd)",), cols)
 
 
 def thermal_drift(j: int, variable: str, mode: str = "ident", reference: np.ndarray | None = None,
                   tau_s: float | None = None) -> Candidate:
-    def build(ctx):
+    def cols(ctx):
         if variable == "time":
             x = ctx.data.run_time / 60.0
         elif variable == "warmup":
@@ -181,42 +198,39 @@ def thermal_drift(j: int, variable: str, mode: str = "ident", reference: np.ndar
                 x = (temp - _segment_first(ctx, temp))[:, j]
             else:
                 x = temp[:, j] - reference[j]
-        return _on_joint(ctx, j, [x * ctx.qd[:, j], x * ctx.sign()[:, j]])
+        return [x * ctx.qd[:, j], x * ctx.sign()[:, j]]
     if variable == "warmup":
         label = f"warm-up 1-exp(-t/{tau_s:g} s)"
     else:
         unit = {"time": "min", "temperature": "°C since run start", "temperature_abs": "°C vs ident"}
         label = f"{variable} [{unit[variable]}]"
-    return Candidate("thermal_drift", j, label, mode, ("x*qd", "x*sign(qd)"), build,
-                     {"variable": variable, "tau_s": tau_s})
+    return _joint("thermal_drift", j, label, mode, ("x*qd", "x*sign(qd)"), cols,
+                  {"variable": variable, "tau_s": tau_s})
 
 
 def position_ripple(j: int, k: int, ripple_mode: str, mode: str = "ident") -> Candidate:
-    def build(ctx):
+    def cols(ctx):
         q = ctx.q[:, j]
         s = ctx.sign()[:, j] if ripple_mode == "friction" else 1.0
-        return _on_joint(ctx, j, [np.sin(k * q) * s, np.cos(k * q) * s])
-    return Candidate("position_ripple", j, f"k={k} {ripple_mode}", mode, ("sin(kq)", "cos(kq)"), build,
-                     {"k": int(k), "ripple_mode": ripple_mode})
+        return [np.sin(k * q) * s, np.cos(k * q) * s]
+    return _joint("position_ripple", j, f"k={k} {ripple_mode}", mode, ("sin(kq)", "cos(kq)"), cols,
+                  {"k": int(k), "ripple_mode": ripple_mode})
 
 
 def current_delay(j: int, mode: str = "ident") -> Candidate:
-    return Candidate("current_delay", j, "", mode, ("dtau/dt",),
-                     lambda ctx: _on_joint(ctx, j, [ctx.dtau[:, j]]))
+    return _joint("current_delay", j, "", mode, ("dtau/dt",), lambda ctx: [ctx.dtau[:, j]])
 
 
 def torque_constant_error(j: int, mode: str = "ident") -> Candidate:
-    return Candidate("torque_constant_error", j, "", mode, ("tau_hat",),
-                     lambda ctx: _on_joint(ctx, j, [ctx.tau_hat[:, j]]))
+    return _joint("torque_constant_error", j, "", mode, ("tau_hat",), lambda ctx: [ctx.tau_hat[:, j]])
 
 
 def current_offset(j: int, mode: str = "ident") -> Candidate:
-    return Candidate("current_offset", j, "", mode, ("1",), lambda ctx: _on_joint(ctx, j, [1.0]))
+    return _joint("current_offset", j, "", mode, ("1",), lambda ctx: [1.0])
 
 
 def joint_elasticity(j: int, mode: str = "ident") -> Candidate:
-    return Candidate("joint_elasticity", j, "", mode, ("d2tau_link/dt2",),
-                     lambda ctx: _on_joint(ctx, j, [ctx.ddtau_link[:, j]]))
+    return _joint("joint_elasticity", j, "", mode, ("d2tau_link/dt2",), lambda ctx: [ctx.ddtau_link[:, j]])
 
 
 #: One Dahl state per (data set, δ) for all joints: six joints' candidates share it.
@@ -224,22 +238,25 @@ _DAHL: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
 
 def _dahl(data, delta: float) -> np.ndarray:
-    from urident.ident.friction import dahl_state, velocity_displacement
+    from urident.ident.friction import dahl_states, velocity_displacement
 
     per_set = _DAHL.setdefault(data, {})
     if delta not in per_set:
         p = data.prepared
-        per_set[delta] = dahl_state(velocity_displacement(p.t, p.qd, p.segment), delta, p.segment)
+        grid = PRESLIDING_DELTAS if delta in PRESLIDING_DELTAS else (delta,)   # the grid at once
+        z = dahl_states(velocity_displacement(p.t, p.qd, p.segment), grid, p.segment)
+        for dg, zg in zip(grid, z):
+            per_set.setdefault(dg, np.ascontiguousarray(zg))
     return per_set[delta]
 
 
 def presliding(j: int, delta: float, mode: str = "ident") -> Candidate:
-    def build(ctx):
+    def cols(ctx):
         # z − tanh: the Dahl state minus the baseline's own Coulomb state (the difference is
         # what the baseline lacks: friction held at standstill and the presliding transition)
-        return _on_joint(ctx, j, [_dahl(ctx.data, delta)[:, j] - ctx.sign()[:, j]])
-    return Candidate("presliding", j, f"Dahl delta={delta:g} rad", mode, ("z-tanh(qd/eps)",), build,
-                     {"delta": float(delta)})
+        return [_dahl(ctx.data, delta)[:, j] - ctx.sign()[:, j]]
+    return _joint("presliding", j, f"Dahl delta={delta:g} rad", mode, ("z-tanh(qd/eps)",), cols,
+                  {"delta": float(delta)})
 
 
 def payload_error(spec, mode: str = "cv") -> Candidate:

@@ -19,6 +19,10 @@ from urident.gap.data import GapSet
 
 #: Corner of the zero-phase low-pass applied before differentiating τ̂ [Hz].
 DERIVATIVE_FILTER_HZ = 15.0
+#: During a diagnosis (``make_context(..., keep_design=True)``) a set's design matrix is kept after
+#: its first pass when it takes at most this many bytes (it is streamed ~6 times; a UR5e 40 s log
+#: at 500 Hz: 50 MB); larger sets stay streamed.
+DESIGN_CACHE_BYTES = 160 * 2 ** 20
 
 
 def fit_baseline(spec, ident: GapSet, friction_eps: float = 0.01):
@@ -82,9 +86,21 @@ class SetContext:
             for a in range(0, self.n, size):
                 yield a, min(a + size, self.n), w3[a:a + size]
             return
+        kept = self.cache.get(("design", size))
+        if kept is not None:
+            yield from kept
+            return
         p = self.data.prepared
+        keep = self.cache.get("keep_design", False) and self.n * 6 * self.n_params * 8 <= DESIGN_CACHE_BYTES
+        parts = []
         # as urident.ident.predict_prepared: timestamps drive a velocity-driven friction state
-        yield from design_chunks(self.spec, self.model.model, p.q, p.qd, p.qdd, p.segment, p.t, size)
+        for a, b, blocks in design_chunks(self.spec, self.model.model, p.q, p.qd, p.qdd, p.segment, p.t, size):
+            if keep:
+                blocks.flags.writeable = False      # shared by every later pass
+                parts.append((a, b, blocks))
+            yield a, b, blocks
+        if keep:
+            self.cache[("design", size)] = parts
 
     def design_product(self, g: np.ndarray) -> np.ndarray:
         """(N, 6) W·g for parameter-space vector(s) ``g`` (p,)."""
@@ -123,11 +139,18 @@ class SetContext:
         return self.tau - self.tau_hat
 
     def sign(self) -> np.ndarray:
-        return np.tanh(self.qd / self.friction_eps)
+        """(N, 6) tanh(q̇/ε), computed once per set (read-only: the candidates share it)."""
+        s = self.cache.get("sign")
+        if s is None:
+            s = self.cache["sign"] = np.tanh(self.qd / self.friction_eps)
+            s.flags.writeable = False
+        return s
 
 
-def make_context(spec, model, data: GapSet) -> SetContext:
-    """Derived signals of ``data`` under the identified ``model`` (its design streamed in chunks)."""
+def make_context(spec, model, data: GapSet, keep_design: bool = False) -> SetContext:
+    """Derived signals of ``data`` under the identified ``model`` (its design streamed in chunks;
+    ``keep_design``: kept in ``cache`` after the first pass when small, :data:`DESIGN_CACHE_BYTES`;
+    ``cache.clear()`` drops it)."""
     from urident.ident.identify import check_compatible
     from urident.model.parameters import is_friction
 
@@ -136,7 +159,8 @@ def make_context(spec, model, data: GapSet) -> SetContext:
     values = np.asarray(model.values, float)
     rigid = ~is_friction(model.kinds)      # the link side: rigid body and rotor inertia
     ctx = SetContext(data, None, np.empty((len(p), 6)), np.empty((len(p), 6)), None, None,
-                     float(model.model.friction_eps), {}, spec, model)
+                     float(model.model.friction_eps), {"keep_design": True} if keep_design else {},
+                     spec, model)
     for a, b, blocks in ctx.chunks():
         ctx.tau_hat[a:b] = blocks @ values
         ctx.tau_link[a:b] = blocks[:, :, rigid] @ values[rigid]

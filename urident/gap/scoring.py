@@ -28,7 +28,7 @@ import numpy as np
 from urident.gap.candidates import Candidate
 from urident.gap.bootstrap import block_edges, default_block_length
 from urident.gap.residual import SetContext
-from urident.gap.stats import IdentFactors, IdentStats, ValidStats, touched
+from urident.gap.stats import IdentFactors, IdentStats, ValidStats, joint_parts
 
 
 def lstsq(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -204,13 +204,12 @@ class Scorer:
                     self.training_gain(c)
 
     def _cv_gain(self, c: Candidate) -> float:
-        f = c.features(self.valid)
         y = self.valid.residual
         gram = np.zeros((c.k, c.k))
         xty = np.zeros(c.k)
-        for j in touched(f):
-            gram += f[:, j, :].T @ f[:, j, :]
-            xty += f[:, j, :].T @ y[:, j]
+        for j, x in joint_parts(c, self.valid):
+            gram += x.T @ x
+            xty += x.T @ y[:, j]
         beta = lstsq_gram(gram, xty)
         return float(2.0 * beta @ xty - beta @ gram @ beta)
 

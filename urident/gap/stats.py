@@ -31,6 +31,16 @@ def touched(f: np.ndarray) -> np.ndarray:
     return np.flatnonzero(np.any(f != 0, axis=(0, 2)))
 
 
+def joint_parts(c, ctx) -> list[tuple[int, np.ndarray]]:
+    """(joint, its (N, k) rows) for each joint whose rows of candidate ``c``'s columns on ``ctx``
+    are not all zero (:func:`touched`)."""
+    x = c.joint_columns(ctx)
+    if x is not None:
+        return [(c.joint, x)] if np.any(x != 0) else []
+    f = c.features(ctx)
+    return [(int(j), f[:, j, :].copy()) for j in touched(f)]   # copies: the (N, 6, k) array is freed
+
+
 def _compact(cands, ctx, first_col: int = 0):
     """Per joint: the candidate columns on its rows (N, K_j) and their global column indices;
     ``slices``: each candidate's columns in the global layout starting at ``first_col``."""
@@ -38,13 +48,11 @@ def _compact(cands, ctx, first_col: int = 0):
     index = {j: [] for j in range(6)}
     slices, col = {}, first_col
     for c in cands:
-        f = c.features(ctx)
         slices[c] = slice(col, col + c.k)
-        for j in touched(f):
-            parts[j].append(f[:, j, :].copy())     # a copy: the (N, 6, k) array is freed
+        for j, x in joint_parts(c, ctx):
+            parts[j].append(x)
             index[j].append(np.arange(col, col + c.k))
         col += c.k
-        del f
     cols = {}
     for j in range(6):
         cols[j] = np.hstack(parts[j]) if parts[j] else None

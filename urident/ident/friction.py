@@ -55,23 +55,31 @@ def dahl_state(q: np.ndarray, delta: float, segment: np.ndarray | None = None,
                initial: np.ndarray | None = None) -> np.ndarray:
     """(N, 6) normalised Dahl state from (N, 6) positions; reset to 0 where ``segment`` changes.
     ``initial`` (6,): the state at the first sample instead of 0 (a stream continuing)."""
+    return np.ascontiguousarray(dahl_states(q, (delta,), segment, initial)[0])
+
+
+def dahl_states(q: np.ndarray, deltas, segment: np.ndarray | None = None,
+                initial: np.ndarray | None = None) -> np.ndarray:
+    """(D, N, 6) :func:`dahl_state` for each presliding distance of ``deltas`` (D,), in one pass
+    over the samples (the per-sample recursion is the cost, not the width of each step)."""
     q = np.asarray(q, dtype=float)
-    n = q.shape[0]
-    z = np.zeros_like(q)
+    d = np.asarray(deltas, dtype=float).reshape(-1, 1)
+    n, m = q.shape
+    z = np.zeros((n, len(d), m))
     dq = np.diff(q, axis=0)
     s = np.sign(dq)
-    decay = np.exp(-np.abs(dq) / delta)
+    decay = np.exp(-np.abs(dq)[:, None, :] / d)           # (N - 1, D, 6)
     new_seg = np.zeros(n, dtype=bool) if segment is None else np.r_[False, np.diff(segment) != 0]
-    cur = np.zeros(q.shape[1]) if initial is None else np.array(initial, dtype=float)
+    cur = np.zeros((len(d), m)) if initial is None else np.broadcast_to(np.asarray(initial, float), (len(d), m))
     if n:
         z[0] = cur
     for k in range(1, n):
         if new_seg[k]:
-            cur = np.zeros(q.shape[1])
+            cur = np.zeros((len(d), m))
         else:
             cur = s[k - 1] + (cur - s[k - 1]) * decay[k - 1]
         z[k] = cur
-    return z
+    return z.transpose(1, 0, 2)
 
 
 def hold_state(qd: np.ndarray, eps: float, v_hold: float, segment: np.ndarray | None = None,
