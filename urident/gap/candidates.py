@@ -263,8 +263,15 @@ def payload_error(spec, mode: str = "cv") -> Candidate:
     from urident.model import regressor_blocks
 
     def build(ctx):
+        kept = ctx.cache.get(("payload_columns", spec.name))
+        if kept is not None:
+            return kept
         blocks = regressor_blocks(spec, ctx.q, ctx.qd, ctx.qdd, ctx.friction_eps)
-        return features.payload_columns(blocks, spec.tool_xyz)
+        cols = features.payload_columns(blocks, spec.tool_xyz)
+        if ctx.cache.get("keep_design"):   # during a diagnosis: built once (N, 6, 4), not per fit
+            cols.flags.writeable = False
+            ctx.cache[("payload_columns", spec.name)] = cols
+        return cols
     return Candidate("payload_error", None, "point mass at the tool", mode,
                      ("tool point mass", "m*rho_x6", "m*rho_y6", "m*rho_z6"), build)
 

@@ -251,7 +251,7 @@ class Scorer:
             folds = np.zeros((self.n_folds, len(k)))
             for b in range(self.n_folds):
                 train = vs.cell_fold != b
-                m = vs.m_cell[train].sum(axis=0)
+                m = vs.train_gram(b)
                 folds[b] = lstsq_gram(m[np.ix_(k, k)], m[k] @ u0)
                 u[np.ix_(~train, k)] -= folds[b]
             beta_c = lstsq_gram(vs.m_total[np.ix_(k, k)], vs.m_total[k] @ u0)

@@ -76,9 +76,15 @@ class IdentFactors:
         with one_blas_thread():
             for a, b, blocks in ctx.chunks():
                 for j in range(6):
-                    parts = [blocks[:, j, :]] + ([] if cols[j] is None else [cols[j][a:b]]) + [r[a:b, j, None]]
-                    x = np.hstack(parts)
-                    fac[j] = triangle(np.vstack([fac[j], x]), m[j])
+                    # [current factor; W_j | C_j | r_j of the chunk], filled in place (one copy)
+                    top = fac[j].shape[0]
+                    x = np.empty((top + b - a, m[j]))
+                    x[:top] = fac[j]
+                    x[top:, :p] = blocks[:, j, :]
+                    if cols[j] is not None:
+                        x[top:, p:-1] = cols[j][a:b]
+                    x[top:, -1] = r[a:b, j]
+                    fac[j] = triangle(x, m[j])
         self.factors = fac
         # where each candidate's columns sit in each joint's factor
         self.where = {c: {} for c in self.cands}
@@ -207,6 +213,15 @@ class ValidStats:
     def finish(self) -> None:
         self.m_cell = self.m.sum(axis=1)                  # (S, D, D) over joints
         self.m_total = self.m_cell.sum(axis=0)            # (D, D)
+        self._train: dict[int, np.ndarray] = {}
+
+    def train_gram(self, fold: int) -> np.ndarray:
+        """(D, D) sum of :attr:`m_cell` over the cells outside CV ``fold`` (its training cells),
+        once per fold: every CV fit of the pool uses it."""
+        m = self._train.get(fold)
+        if m is None:
+            m = self._train[fold] = self.m_cell[self.cell_fold != fold].sum(axis=0)
+        return m
 
     def cols(self, cands) -> np.ndarray:
         if not cands:
