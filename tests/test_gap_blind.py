@@ -126,3 +126,19 @@ def test_two_effects_at_once_are_scored_per_finding(gb, robot):
     assert m["mean_shrink_error_named_pts"] == pytest.approx(sum(errs) / 2)
     assert all(e == pytest.approx(abs(s["predicted_shrink_pct"] - s["actual_shrink_pct"]))
                for e, s in zip(errs, row["shrink"]))
+
+
+def test_timing_is_summarised_per_scenario_and_without_each_process_first(gb, robot):
+    """The benchmark's time figures (issue 21, item 6) come from the rows: every scenario's
+    diagnosis, and apart the ones after each process's first (it also builds cached set-up)."""
+    row = _run(gb, robot, [], index=4)
+    assert row["diagnosis_s"] > 0 and row["diagnosis_cpu_s"] >= 0
+    assert isinstance(row["diagnosis_first_in_process"], bool)
+    rows = [dict(row, diagnosis_s=3.0, diagnosis_cpu_s=2.0, diagnosis_first_in_process=True),
+            dict(row, diagnosis_s=1.0, diagnosis_cpu_s=0.5, diagnosis_first_in_process=False),
+            dict(row, diagnosis_s=2.0, diagnosis_cpu_s=1.5, diagnosis_first_in_process=False)]
+    t = gb.timing_summary(rows)
+    assert t["scenarios"] == 3 and t["warm_scenarios"] == 2
+    assert t["mean_wall_s"] == pytest.approx(2.0) and t["max_wall_s"] == 3.0
+    assert t["mean_cpu_warm_s"] == pytest.approx(1.0) and t["mean_wall_warm_s"] == pytest.approx(1.5)
+    assert gb.timing_summary([])["mean_wall_s"] is None

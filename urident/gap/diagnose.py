@@ -21,7 +21,7 @@ from urident.gap.bootstrap import default_block_length
 from urident.gap.candidates import families
 from urident.gap.config import GapConfig
 from urident.gap.data import GapSet, build_set
-from urident.gap.residual import fit_baseline, make_context
+from urident.gap.residual import baseline_design, fit_baseline, make_context
 from urident.gap.results import GapResult, e_n, rms
 from urident.gap.scoring import Scorer
 from urident.gap.selection import select
@@ -52,8 +52,13 @@ def diagnose_prepared(spec, ident: GapSet, valid: GapSet, *, params=None,
 
 
 def _diagnose_prepared(spec, ident: GapSet, valid: GapSet, params, config: GapConfig) -> GapResult:
-    model = params if params is not None else fit_baseline(spec, ident, config.friction_eps)
-    ctx_i = make_context(spec, model, ident, keep_design=True)
+    design = None     # the identification set's design: built once for the fit and the context
+    if params is None:
+        design = baseline_design(spec, ident, config.friction_eps)
+        model = fit_baseline(spec, ident, config.friction_eps, design)
+    else:
+        model = params
+    ctx_i = make_context(spec, model, ident, keep_design=True, design=design)
     ctx_v = make_context(spec, model, valid, keep_design=True)
     block = default_block_length(ctx_v.n, valid.sample_rate * config.block_s)
     scorer = Scorer(ctx_i, ctx_v, config.n_folds, block)

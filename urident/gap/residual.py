@@ -25,11 +25,29 @@ DERIVATIVE_FILTER_HZ = 15.0
 DESIGN_CACHE_BYTES = 160 * 2 ** 20
 
 
-def fit_baseline(spec, ident: GapSet, friction_eps: float = 0.01):
-    """The paper's baseline on the identification set (OLS, tanh friction)."""
+def fit_baseline(spec, ident: GapSet, friction_eps: float = 0.01, design=None):
+    """The paper's baseline on the identification set (OLS, tanh friction); ``design``: its
+    design's chunks already built (:func:`baseline_design`)."""
     from urident.ident import ModelConfig, identify
 
-    return identify(spec, ident.prepared, "ols", ModelConfig(friction_eps=friction_eps))
+    return identify(spec, ident.prepared, "ols", ModelConfig(friction_eps=friction_eps), design=design)
+
+
+def baseline_design(spec, data: GapSet, friction_eps: float = 0.01) -> list | None:
+    """The baseline's design of ``data`` as :meth:`SetContext.chunks` yields it, for the fit and
+    then the set's context (``make_context(..., design=)``), or None when larger than
+    :data:`DESIGN_CACHE_BYTES` (then streamed each time)."""
+    from urident.ident import ModelConfig
+    from urident.ident.design import CHUNK_SAMPLES, column_names, design_chunks
+
+    model = ModelConfig(friction_eps=friction_eps)
+    p = data.prepared
+    if len(p) * 6 * len(column_names(spec, model)) * 8 > DESIGN_CACHE_BYTES:
+        return None
+    parts = list(design_chunks(spec, model, p.q, p.qd, p.qdd, p.segment, p.t, CHUNK_SAMPLES))
+    for _, _, blocks in parts:
+        blocks.flags.writeable = False      # shared by every later pass
+    return parts
 
 
 def _segment_slices(segment: np.ndarray):
@@ -147,10 +165,12 @@ class SetContext:
         return s
 
 
-def make_context(spec, model, data: GapSet, keep_design: bool = False) -> SetContext:
+def make_context(spec, model, data: GapSet, keep_design: bool = False, design=None) -> SetContext:
     """Derived signals of ``data`` under the identified ``model`` (its design streamed in chunks;
     ``keep_design``: kept in ``cache`` after the first pass when small, :data:`DESIGN_CACHE_BYTES`;
-    ``cache.clear()`` drops it)."""
+    ``design``: those chunks already built, :func:`baseline_design`; ``cache.clear()`` drops
+    them)."""
+    from urident.ident.design import CHUNK_SAMPLES
     from urident.ident.identify import check_compatible
     from urident.model.parameters import is_friction
 
@@ -161,6 +181,8 @@ def make_context(spec, model, data: GapSet, keep_design: bool = False) -> SetCon
     ctx = SetContext(data, None, np.empty((len(p), 6)), np.empty((len(p), 6)), None, None,
                      float(model.model.friction_eps), {"keep_design": True} if keep_design else {},
                      spec, model)
+    if design is not None:
+        ctx.cache[("design", CHUNK_SAMPLES)] = design
     for a, b, blocks in ctx.chunks():
         ctx.tau_hat[a:b] = blocks @ values
         ctx.tau_link[a:b] = blocks[:, :, rigid] @ values[rigid]

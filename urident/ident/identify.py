@@ -92,16 +92,16 @@ def _wrap(spec, est: Estimate, model: ModelConfig, data: Prepared, weighting: st
 def identify_all(spec, data: Prepared | Sequence[Prepared], methods: Sequence[str] = METHODS,
                  model: ModelConfig | None = None, weighting: str = "none",
                  regularisation: float = DEFAULT_REGULARISATION,
-                 preprocess_config: PreprocessConfig | None = None) -> dict[str, IdentifiedModel]:
+                 preprocess_config: PreprocessConfig | None = None, design=None) -> dict[str, IdentifiedModel]:
     """Run several methods on the same data: one reduced problem (:mod:`urident.ident.reduced`), its
     regressor built in chunks, so memory does not grow with the samples. ``preprocess_config`` is
-    only recorded."""
+    only recorded; ``design``: those chunks already built (:func:`~urident.ident.reduced.reduce_blocks`)."""
     model = model or ModelConfig()
     data = _as_prepared(data)
     for m in methods:
         if m not in METHODS:
             raise ConfigError(f"method {m!r} unknown (known: {', '.join(METHODS)}, all)")
-    red = reduce_design(spec, model, data)
+    red = reduce_design(spec, model, data, design=design)
     names = column_names(spec, model)
     out = {}
     for m in methods:
@@ -121,9 +121,10 @@ def identify_all(spec, data: Prepared | Sequence[Prepared], methods: Sequence[st
 def identify(spec, data: Prepared | Sequence[Prepared], method: str = "ols",
              model: ModelConfig | None = None, weighting: str = "none",
              regularisation: float = DEFAULT_REGULARISATION,
-             preprocess_config: PreprocessConfig | None = None) -> IdentifiedModel:
+             preprocess_config: PreprocessConfig | None = None, design=None) -> IdentifiedModel:
     """One method (``ols``, ``bounded`` or ``consistent``) on prepared data."""
-    return identify_all(spec, data, (method,), model, weighting, regularisation, preprocess_config)[method]
+    return identify_all(spec, data, (method,), model, weighting, regularisation, preprocess_config,
+                        design)[method]
 
 
 def check_compatible(identified: IdentifiedModel, spec, where: str = "parameters") -> None:

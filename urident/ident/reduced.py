@@ -148,17 +148,20 @@ class Accumulator:
         return ReducedLS(np.stack(self._r), self.n_samples, self.n_params)
 
 
-def reduce_design(spec, model, data, targets=None, chunk: int | None = None) -> ReducedLS:
+def reduce_design(spec, model, data, targets=None, chunk: int | None = None, design=None) -> ReducedLS:
     """The reduced identification problem of prepared ``data`` under ``model``, its regressor built
     :data:`urident.ident.design.CHUNK_SAMPLES` samples at a time. ``targets``: (N, 6, k) torque
     columns (default ``data.tau``)."""
-    return reduce_blocks(spec, model, data, [0, len(data)], targets, chunk)[0]
+    return reduce_blocks(spec, model, data, [0, len(data)], targets, chunk, design)[0]
 
 
-def reduce_blocks(spec, model, data, edges, targets=None, chunk: int | None = None) -> list[ReducedLS]:
+def reduce_blocks(spec, model, data, edges, targets=None, chunk: int | None = None,
+                  design=None) -> list[ReducedLS]:
     """One reduced problem per block [edges[i], edges[i + 1]) of samples (contiguous blocks of a
     cross-validation), from one pass over the whole sequence (friction states run through the
-    block boundaries, as in the whole regressor)."""
+    block boundaries, as in the whole regressor). ``design``: that pass already made, the
+    ``(start, stop, blocks)`` of :func:`urident.ident.design.design_chunks` (a caller that keeps
+    them for other uses)."""
     from urident.ident.design import CHUNK_SAMPLES, design_chunks
 
     from urident.progress import Progress
@@ -167,8 +170,10 @@ def reduce_blocks(spec, model, data, edges, targets=None, chunk: int | None = No
     edges = [int(e) for e in edges]
     accs = [Accumulator() for _ in edges[:-1]]
     with Progress("identification: regressor (samples)", len(data)) as progress:
-        for a, b, blocks in design_chunks(spec, model, data.q, data.qd, data.qdd, data.segment, data.t,
-                                          chunk or CHUNK_SAMPLES):
+        if design is None:
+            design = design_chunks(spec, model, data.q, data.qd, data.qdd, data.segment, data.t,
+                                   chunk or CHUNK_SAMPLES)
+        for a, b, blocks in design:
             for i, acc in enumerate(accs):
                 lo, hi = max(a, edges[i]), min(b, edges[i + 1])
                 if lo < hi:
