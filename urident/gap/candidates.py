@@ -96,7 +96,8 @@ class Candidate:
         return len(self.columns)
 
     def features(self, ctx: SetContext) -> np.ndarray:
-        # built afresh, never cached: the scorer keeps only their statistics (bounded memory)
+        # built afresh (bounded memory: the scorer keeps only their statistics); only the payload's
+        # few columns, costly to build, are kept while a diagnosis runs (payload_error)
         f = np.asarray(self.build(ctx), float)
         assert f.shape == (ctx.n, 6, self.k), (self.name, f.shape)
         return f
