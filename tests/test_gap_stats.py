@@ -113,6 +113,34 @@ def test_scores_equal_the_per_sample_gains_and_bootstrap(pair):
         assert np.allclose(s.change, base - ref, atol=1e-9 * np.max(np.abs(base)))
 
 
+def test_the_design_kept_during_a_diagnosis_is_built_once_per_set_and_changes_no_number(monkeypatch):
+    """A small set's design is built once (the identification set's for the baseline fit and
+    its context alike) and reused by every later pass; streamed instead (sets above the byte
+    budget) it is rebuilt each pass and the result is the same to the last bit."""
+    import urident.gap.residual as residual
+    import urident.ident.design as design
+    from urident.gap import diagnose
+
+    spec = load_robot("ur10e")
+    ident = [simulate(spec, sines(5), EFFECT, seed=31)]
+    valid = [simulate(spec, sines(6, vmax=0.4), EFFECT, seed=32)]
+    calls = []
+    real = design.design_chunks
+
+    def counted(*args, **kw):
+        calls.append(1)
+        yield from real(*args, **kw)
+
+    monkeypatch.setattr(design, "design_chunks", counted)
+    kept = diagnose(ident, valid, spec, config=FAST)
+    n_kept = len(calls)
+    monkeypatch.setattr(residual, "DESIGN_CACHE_BYTES", 0)
+    calls.clear()
+    streamed = diagnose(ident, valid, spec, config=FAST)
+    assert n_kept == 2 and len(calls) > 4, (n_kept, len(calls))
+    assert kept.findings and kept.as_dict() == streamed.as_dict()
+
+
 def test_a_diagnosis_keeps_no_design_matrix_and_no_feature_cache(pair):
     from urident.gap import diagnose
 

@@ -269,7 +269,7 @@ def payload_error(spec, mode: str = "cv") -> Candidate:
             return kept
         blocks = regressor_blocks(spec, ctx.q, ctx.qd, ctx.qdd, ctx.friction_eps)
         cols = features.payload_columns(blocks, spec.tool_xyz)
-        if ctx.cache.get("keep_design"):   # during a diagnosis: built once (N, 6, 4), not per fit
+        if ctx.keeps_design():     # during a diagnosis: built once, not per fit
             cols.flags.writeable = False
             ctx.cache[("payload_columns", spec.name)] = cols
         return cols

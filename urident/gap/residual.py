@@ -109,7 +109,7 @@ class SetContext:
             yield from kept
             return
         p = self.data.prepared
-        keep = self.cache.get("keep_design", False) and self.n * 6 * self.n_params * 8 <= DESIGN_CACHE_BYTES
+        keep = self.keeps_design()
         parts = []
         # as urident.ident.predict_prepared: timestamps drive a velocity-driven friction state
         for a, b, blocks in design_chunks(self.spec, self.model.model, p.q, p.qd, p.qdd, p.segment, p.t, size):
@@ -119,6 +119,11 @@ class SetContext:
             yield a, b, blocks
         if keep:
             self.cache[("design", size)] = parts
+
+    def keeps_design(self) -> bool:
+        """Whether derived arrays are kept between passes: during a diagnosis, on a set whose
+        design takes at most :data:`DESIGN_CACHE_BYTES`."""
+        return bool(self.cache.get("keep_design")) and self.n * 6 * self.n_params * 8 <= DESIGN_CACHE_BYTES
 
     def design_product(self, g: np.ndarray) -> np.ndarray:
         """(N, 6) W·g for parameter-space vector(s) ``g`` (p,)."""
