@@ -46,7 +46,7 @@ def diagnose(ident_recordings: Sequence, valid_recordings: Sequence, spec, *, pa
 def diagnose_prepared(spec, ident: GapSet, valid: GapSet, *, params=None,
                       config: GapConfig | None = None) -> GapResult:
     # one BLAS thread: the diagnosis makes thousands of small products and factorisations, where
-    # a second OpenBLAS thread mostly spins (measured: half the wall and CPU time on 2 cores)
+    # a second OpenBLAS thread mostly spins (docs/scale.md: 2-4x the wall time on a loaded host)
     with one_blas_thread():
         return _diagnose_prepared(spec, ident, valid, params, config or GapConfig())
 

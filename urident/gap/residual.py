@@ -4,9 +4,11 @@ Baseline: the paper's model (full base set, OLS, Coulomb friction tanh(q̇/ε), 
 identified with :func:`urident.ident.identify` on the identification set, or loaded from a
 parameters file. Residual r = τ_measured − τ̂ (N, 6), τ_measured = drive gains × raw current.
 
-:class:`SetContext` holds one set's baseline and the derived signals the candidate columns use
-(its design matrix W is streamed in chunks, never kept: τ̂, the link-side (rigid-body) part τ̂_link = τ̂ − friction, and the time derivatives
-dτ̂/dt, d²τ̂_link/dt² (taken per segment on the actual timestamps after a zero-phase low-pass).
+:class:`SetContext` holds one set's baseline and the derived signals the candidate columns use:
+τ̂, the link-side (rigid-body) part τ̂_link = τ̂ − friction, and the time derivatives dτ̂/dt,
+d²τ̂_link/dt² (taken per segment on the actual timestamps after a zero-phase low-pass). Its
+design matrix W is streamed in chunks; only during a diagnosis, on a small set, is it kept
+between passes (:data:`DESIGN_CACHE_BYTES`).
 """
 
 from __future__ import annotations
