@@ -264,14 +264,15 @@ def payload_error(spec, mode: str = "cv") -> Candidate:
     from urident.model import regressor_blocks
 
     def build(ctx):
-        kept = ctx.cache.get(("payload_columns", spec.name))
-        if kept is not None:
-            return kept
+        keep = isinstance(ctx, SetContext) and ctx.keeps_design()   # during a diagnosis: built once
+        key = ("payload_columns", spec.name)
+        if keep and key in ctx.cache:
+            return ctx.cache[key]
         blocks = regressor_blocks(spec, ctx.q, ctx.qd, ctx.qdd, ctx.friction_eps)
         cols = features.payload_columns(blocks, spec.tool_xyz)
-        if ctx.keeps_design():     # during a diagnosis: built once, not per fit
+        if keep:
             cols.flags.writeable = False
-            ctx.cache[("payload_columns", spec.name)] = cols
+            ctx.cache[key] = cols
         return cols
     return Candidate("payload_error", None, "point mass at the tool", mode,
                      ("tool point mass", "m*rho_x6", "m*rho_y6", "m*rho_z6"), build)
