@@ -71,7 +71,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "the arm's parameters known), joints 1-3 within 20 %% of their velocity and "
                         "acceleration limits (wrist-dominated); needs the tool's size "
                         "(--tool-capsule or a --payload file with a capsule)")
-    options.add_payload_argument(p, "its capsule (if any) is the tool's size for the collision checks")
+    options.add_checked_payload_arguments(p, "the torque checks include it (with and without it) and "
+                                             "its capsule (if any) is the tool's size for the collision "
+                                             "checks; the trajectory file records it")
     options.add_tool_capsule_argument(p)
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=run)
@@ -91,7 +93,8 @@ def run(args: argparse.Namespace) -> int:
 
     out = options.output_path("--out", args.out, args.overwrite)
     spec = load_robot(args.robot)
-    tool, tool_source = _tool(args, spec)
+    payload, payload_source = options.checked_payload(args, spec)
+    tool, tool_source = _tool(args, payload)
     if args.for_payload and tool is None:
         raise ConfigError("--for-payload needs the tool's size for the collision checks: give "
                           "--tool-capsule RADIUS,LENGTH or a --payload file with a capsule")
@@ -132,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
     progress = None if args.quiet else (lambda message: print(f"urident excite: {message}", file=sys.stderr,
                                                                 flush=True))
     try:
-        result = optimize_excitation(spec, settings, progress=progress)
+        result = optimize_excitation(spec, settings, progress=progress, payload=payload)
     except ValueError as exc:
         raise ConfigError(f"cannot optimise an excitation for {spec.name}: {exc}") from None
 
@@ -150,12 +153,12 @@ def run(args: argparse.Namespace) -> int:
     if settings.for_payload:
         optimization.update(for_payload=True, arm_joint_fraction=settings.arm_joint_fraction)
         criteria["payload_cond"] = result.payload_cond
-    report = check_trajectory(spec, result.trajectory, limits=result.limits)
+    report = check_trajectory(spec, result.trajectory, limits=result.limits, payload=payload)
     report.raise_if_unsafe(f"{args.out} (not written)")
     check = {"ok": report.ok, "rate_hz": report.rate_hz, "min_distance_m": report.min_distance_m,
              "min_distance_pair": report.min_distance_pair, "collision_margin_m": report.collision_margin_m}
     document = trajectory_document(robot_ref, result.trajectory, result.limits, optimization, criteria, check,
-                                   tool=tool)
+                                   tool=tool, payload=payload)
     what = (f"payload excitation (wrist-dominated): cond of the payload columns = {result.payload_cond:.4g};\n"
             if settings.for_payload else "")
     header = (f"urident excitation trajectory for {spec.description}: Kovincic et al. (2019) eq. (25),\n"
@@ -163,12 +166,15 @@ def run(args: argparse.Namespace) -> int:
               f"(cond Λ = {result.criteria.cond_lambda:.4g}; columns scaled by reference RMS).\n"
               + (f"Tool capsule (collision checks): radius {tool.radius_m:g} m, length {tool.length_m:g} m "
                  f"along the flange z axis ({tool_source}).\n" if tool is not None else "")
+              + (f"Torque checks include the payload ({payload_source}): {payload.describe()}.\n"
+                 if payload is not None else "")
               + f"Re-check with: urident check-trajectory {args.out}")
     # what check-trajectory will read: the written text, parsed back and checked before writing
     text = trajectory_text(document, header)
     loaded = parse_trajectory_document(parse_yaml(text, f"{out} (not written)"), out)
     if not _same(loaded, result):  # the dense check above holds for the file only if it reads back exactly
-        check_trajectory(loaded.spec, loaded.trajectory, limits=loaded.limits).raise_if_unsafe(
+        check_trajectory(loaded.spec, loaded.trajectory, limits=loaded.limits,
+                         payload=loaded.payload).raise_if_unsafe(
             f"{args.out} (not written)")
     write_trajectory(out, document, header, overwrite=args.overwrite)
     print(f"wrote {args.out}: {spec.name}, L = {settings.harmonics}, {settings.duration_s:g} s, "
@@ -176,6 +182,9 @@ def run(args: argparse.Namespace) -> int:
           + f"cond(Θ̄_B) = {result.criteria.cond_theta:.4g} (cond Λ = {result.criteria.cond_lambda:.4g}, "
           f"{result.criteria.n_base} base parameters), min distance {report.min_distance_m:.4f} m "
           f"({report.min_distance_pair}), {result.wall_s:.1f} s")
+    if payload is not None:
+        print(f"payload {payload.mass_kg:g} kg ({payload_source}): recorded in the file, the torque checks "
+              f"hold with and without it (check-trajectory, run)")
     if tool is not None:
         print(f"tool capsule radius {tool.radius_m:g} m, length {tool.length_m:g} m ({tool_source}): "
               f"recorded in the file, part of every check of it (check-trajectory, run)")
@@ -186,11 +195,10 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _tool(args: argparse.Namespace, spec):
+def _tool(args: argparse.Namespace, payload):
     """The tool's capsule and where it came from: --tool-capsule, else the --payload file's."""
     from urident.model.robot import ToolCapsule
 
-    payload = options.load_payload_arg(args, spec)
     if args.tool_capsule is not None:
         return args.tool_capsule, "--tool-capsule"
     cap = payload.info.get("capsule") if payload is not None else None
