@@ -3,7 +3,7 @@ with the realistic preset of unmodelled effects on.
 
 Per seed: the arm is identified (``urident identify``, paper model plus offset, load-friction and
 Stribeck columns) on the robot's identification trajectory without a load; then each payload
-(0.3 to 10 kg, off-axis centre of mass, a full inertia) rides the payload excitation trajectory
+(0.3, 1, 1.5, 2, 3 and 10 kg, off-axis centre of mass, a full inertia) rides the payload excitation trajectory
 (``experiments/ROBOT_payload.yaml``, from ``urident excite --for-payload``) and ``urident payload``
 estimates it with that arm and a tare: the same trajectory run without the tool (``--unloaded``;
 ``--no-tare`` to leave it out). Drive gains: ``torque_constant_error`` on, the payload trajectory
@@ -32,6 +32,8 @@ ROOT = Path(__file__).resolve().parent.parent
 PAYLOADS = [  # mass [kg], centre of mass [m] (flange), [Ixx, Iyy, Izz], [Ixy, Ixz, Iyz] about it
     (0.3, [0.0, 0.01, 0.03], [4e-4, 4e-4, 2e-4], [0.0, 0.0, 0.0]),
     (1.0, [0.02, -0.01, 0.06], [3e-3, 4e-3, 2e-3], [2e-4, 0.0, -1e-4]),
+    (1.5, [0.02, 0.01, 0.07], [6e-3, 8e-3, 4e-3], [3e-4, -2e-4, 1e-4]),
+    (2.0, [0.025, -0.015, 0.075], [0.01, 0.013, 0.007], [5e-4, -1e-3, 2e-4]),
     (3.0, [0.03, 0.02, 0.08], [0.02, 0.025, 0.015], [1e-3, -2e-3, 5e-4]),
     (10.0, [0.0, 0.05, 0.10], [0.08, 0.06, 0.05], [0.0, 5e-3, 0.0]),
 ]
