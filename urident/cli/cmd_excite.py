@@ -13,26 +13,21 @@ MAX_HARMONICS = 100      # what trajectory files allow (urident.excitation.files
 MAX_DURATION_S = 3600.0
 SAMPLES_PER_PERIOD = 10  # the highest harmonic gets at least this many controller ticks
 # --for-payload: the inertia needs acceleration, so two base periods in 30 s (2.7 times the
-# frequency of one in 20 s); the wrist then runs near its velocity limit, kept at 0.7 of it, and
-# lower on a faster wrist (payload_velocity_fraction), so that servoJ's lag (q̇ × lookahead) stays
-# inside the session's tracking monitor. Measured with benchmarks/payload.py (README).
+# frequency of one in 20 s); the wrist then runs near its velocity limit, kept at 0.7 of it and
+# within payload_velocity_cap (servoJ's lag on a fast wrist). Measured with benchmarks/payload.py (README).
 PAYLOAD_PERIODS = 2
 PAYLOAD_DURATION_S = 30.0
 PAYLOAD_VELOCITY_FRACTION = 0.7
-PAYLOAD_LAG_SHARE = 0.9       # of the tracking monitor that the lag bound may use
+PAYLOAD_LAG_SHARE = 0.9       # of the tracking monitor that servoJ's lag bound may use
 
 
-def payload_velocity_fraction(spec) -> float:
-    """--for-payload's velocity fraction: 0.7, or what keeps the fastest wrist joint's lag
-    (q̇_max × the session's default lookahead) within 0.9 of its default tracking monitor
-    (0.25 rad): UR10e/UR5e 0.7, UR20/UR30 0.61, UR3e/UR3 (6.28 rad/s wrist) 0.35."""
-    import math
-
+def payload_velocity_cap() -> float:
+    """--for-payload's |q̇| bound [rad/s]: servoJ's lag, bounded by q̇ × the session's default
+    lookahead (0.1 s), within 0.9 of its default tracking monitor (0.25 rad): 2.25 rad/s, which
+    binds on wrists faster than 0.7 × 3.2 rad/s (UR3e/UR3, UR20/UR30)."""
     from urident.session.config import MonitorConfig, ServoConfig
 
-    bound = (PAYLOAD_LAG_SHARE * MonitorConfig().max_tracking_error_rad
-             / (ServoConfig().lookahead_time_s * float(max(spec.qd_max[3:]))))
-    return min(PAYLOAD_VELOCITY_FRACTION, math.floor(100 * bound) / 100)
+    return PAYLOAD_LAG_SHARE * MonitorConfig().max_tracking_error_rad / ServoConfig().lookahead_time_s
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -65,9 +60,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--iterations", type=options.int_range(1, 100000), default=None,
                    help="L-BFGS-B iterations per start (default 100)")
     p.add_argument("--velocity-fraction", type=options.fraction, default=None,
-                   help=f"|q̇| ≤ fraction · robot limit (default 0.8; with --for-payload "
-                        f"{PAYLOAD_VELOCITY_FRACTION}, less where servoJ's lag on a faster wrist would "
-                        "near the session's tracking monitor: 0.35 on a UR3e)")
+                   help=f"|q̇| ≤ fraction · robot limit (default 0.8; {PAYLOAD_VELOCITY_FRACTION} with "
+                        "--for-payload, which also keeps |q̇| within 2.25 rad/s: servoJ's lag inside "
+                        "the session's tracking monitor)")
     p.add_argument("--acceleration-fraction", type=options.fraction, default=None,
                    help="|q̈| ≤ fraction · robot limit (default 1.0)")
     p.add_argument("--torque-fraction", type=options.fraction, default=None,
@@ -119,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
     if args.duration is None:
         args.duration = PAYLOAD_DURATION_S if args.for_payload else 20.0
     if args.velocity_fraction is None and args.for_payload:
-        args.velocity_fraction = payload_velocity_fraction(spec)
+        args.velocity_fraction = PAYLOAD_VELOCITY_FRACTION
     top_hz = args.harmonics * args.periods / args.duration
     if top_hz > spec.controller_rate_hz / SAMPLES_PER_PERIOD:
         raise ConfigError(
@@ -138,7 +133,8 @@ def run(args: argparse.Namespace) -> int:
         settings = ExcitationSettings(harmonics=args.harmonics, duration_s=args.duration,
                                       periods=args.periods, criterion=args.criterion,
                                       reduced=args.reduced, seed=args.seed, margins=margins,
-                                      for_payload=args.for_payload)
+                                      for_payload=args.for_payload,
+                                      max_velocity_rad_s=payload_velocity_cap() if args.for_payload else None)
         if args.q0 is not None:
             settings = replace(settings, q0=tuple(args.q0))
         if args.starts is not None:
@@ -166,7 +162,8 @@ def run(args: argparse.Namespace) -> int:
                     "wall_s": round(result.wall_s, 3), "evaluations": result.evaluations}
     criteria = {**result.criteria.as_dict(), "rate_hz": spec.controller_rate_hz, "reduced": settings.reduced}
     if settings.for_payload:
-        optimization.update(for_payload=True, arm_joint_fraction=settings.arm_joint_fraction)
+        optimization.update(for_payload=True, arm_joint_fraction=settings.arm_joint_fraction,
+                            max_velocity_rad_s=settings.max_velocity_rad_s)
         criteria["payload_cond"] = result.payload_cond
     report = check_trajectory(spec, result.trajectory, limits=result.limits, payload=payload)
     report.raise_if_unsafe(f"{args.out} (not written)")

@@ -74,7 +74,7 @@ _ABS_LIMIT_KEYS = {"q_min_rad": "q_min", "q_max_rad": "q_max", "qd_max_rad_s": "
                    "qdd_max_rad_s2": "qdd_max", "tau_max_nm": "tau_max"}
 _OPT_KEYS = {"criterion", "reduced", "seed", "starts", "iterations", "criterion_samples",
              "collision_samples", "limit_samples", "periods", "wall_s", "evaluations", "for_payload",
-             "arm_joint_fraction"}
+             "arm_joint_fraction", "max_velocity_rad_s"}
 _CRITERIA_KEYS = {"cond_theta", "cond_lambda", "logdet_lambda", "cond_theta_raw", "cond_theta_equilibrated", "n_samples",
                   "n_base", "rate_hz", "reduced", "payload_cond"}
 _CHECK_KEYS = {"rate_hz", "min_distance_m", "min_distance_pair", "collision_margin_m", "ok"}

@@ -70,6 +70,7 @@ class ExcitationSettings:
     margins: Margins = field(default_factory=Margins)
     for_payload: bool = False             # criterion: cond of the payload columns (module doc)
     arm_joint_fraction: float = ARM_JOINT_FRACTION   # for_payload: joints 1-3's share of their limits
+    max_velocity_rad_s: float | None = None  # the optimiser's |q̇| bound on every joint besides the margins'
 
     def __post_init__(self) -> None:
         if self.criterion not in CRITERIA:
@@ -83,6 +84,8 @@ class ExcitationSettings:
         if min(self.candidates, self.starts, self.criterion_samples, self.collision_samples,
                self.limit_samples) < 1 or self.iterations < 0:
             raise ValueError("sample counts, candidates and starts must be positive")
+        if self.max_velocity_rad_s is not None and not self.max_velocity_rad_s > 0:
+            raise ValueError(f"max_velocity_rad_s must be positive, not {self.max_velocity_rad_s}")
         if not 0 < self.arm_joint_fraction <= 1:
             raise ValueError(f"arm_joint_fraction must be in (0, 1], not {self.arm_joint_fraction}")
 
@@ -118,6 +121,8 @@ class ExcitationProblem:
             f = np.where(np.arange(6) < 3, s.arm_joint_fraction, 1.0)
             self.limits = replace(self.file_limits, qd_max=self.file_limits.qd_max * f,
                                   qdd_max=self.file_limits.qdd_max * f)
+        if s.max_velocity_rad_s is not None:
+            self.limits = replace(self.limits, qd_max=np.minimum(self.limits.qd_max, s.max_velocity_rad_s))
         self.q0 = np.array(s.q0, dtype=float)
         if np.any(self.q0 <= self.limits.q_min) or np.any(self.q0 >= self.limits.q_max):
             raise ValueError("q0 is not strictly inside the position limits (with margin)")
