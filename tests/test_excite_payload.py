@@ -204,12 +204,19 @@ def test_a_payload_above_the_rated_one_is_refused(tmp_path, capsys):
         load_trajectory(heavy)
 
 
-def test_excite_with_a_payload_mass_records_it(tmp_path, capsys):
+def test_excite_with_a_payload_mass_records_it_and_caps_a_fast_wrist(tmp_path, capsys):
+    from urident.session.config import MonitorConfig, ServoConfig
+
     out = tmp_path / "t.yaml"
-    assert main(["excite", "--robot", "ur5", "--payload-mass", "3", "--payload-com", "0,0,0.08", "--out", str(out),
-                 "--harmonics", "2", "--duration", "6", "--iterations", "3", "--starts", "1", "--quiet"]) == 0
+    assert main(["excite", "--robot", "ur3e", "--for-payload", "--tool-capsule", "0.04,0.1", "--payload-mass", "3",
+                 "--payload-com", "0,0,0.08", "--out", str(out), "--harmonics", "2", "--duration", "6",
+                 "--iterations", "3", "--starts", "1", "--quiet"]) == 0
     assert "payload 3 kg (--payload-mass)" in capsys.readouterr().out
     loaded = load_trajectory(out)
     assert loaded.payload.mass_kg == 3.0 and list(loaded.payload.com_m) == [0.0, 0.0, 0.08]
+    # a UR3e wrist's 0.7 × 6.28 rad/s would lag 0.44 rad behind servoJ's 0.1 s lookahead: capped
+    _, qd, _ = loaded.trajectory.evaluate(np.linspace(0.0, loaded.trajectory.duration, 6001))
+    assert loaded.limits.qd_max[3:].min() * ServoConfig().lookahead_time_s > MonitorConfig().max_tracking_error_rad
+    assert np.abs(qd).max() * ServoConfig().lookahead_time_s <= 0.9 * MonitorConfig().max_tracking_error_rad + 1e-4
     assert main(["check-trajectory", str(out)]) == 0
     assert "payload in the torque check" in capsys.readouterr().out
