@@ -453,7 +453,8 @@ def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion:
                  "periods_over_tolerance": over,
                  "max_tracking_error_rad": monitor.max_tracking_error,
                  "servo_timestamps_s": servo_timestamps, "stop_problems": problems,
-                 "late_cycles": monitor.late.late, "declared_payload": link.declared_payload()}
+                 "late_cycles": monitor.late.late, "declared_payload": link.declared_payload(),
+                 "checked_payload_kg": 0.0 if motion.payload is None else float(motion.payload.mass_kg)}
         stats = recorder.stop(status, abort_reason, extra)
         if live is not None:
             live.close(abort_reason)
