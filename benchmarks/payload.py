@@ -124,6 +124,8 @@ def main() -> None:
                 cases.append(case)
                 print(f"seed {seed}, {mass:5.1f} kg: mass {case['mass_err_pct']:+.2f} %, CoM {case['com_err_mm']:.2f} mm, "
                       f"inertia {'identified' if inertia_ok else 'not identifiable'}"
+                      + (f" (of it: {', '.join(n for n in est['identifiable'] if n.startswith('J')) or 'none'})"
+                         if not inertia_ok else "")
                       + (f" ({', '.join(f'{v:+.0f}' for v in case['principal_inertia_err_pct'])} %)" if inertia_ok else ""),
                       flush=True)
             if args.no_gains:
@@ -156,6 +158,8 @@ def main() -> None:
                "gains_trajectory": str(gains_traj.name),
                "max_mass_err_pct": mass_err, "max_com_err_mm": com_err,
                "inertia_identified_cases": len(with_inertia), "cases": len(cases),
+               "inertia_identified_by_mass": {f"{m:g}": sum(c["inertia_identifiable"] for c in cases if c["mass_kg"] == m)
+                                              for m in sorted({c["mass_kg"] for c in cases})},
                "max_principal_inertia_err_pct": inertia_err,
                "max_calibrated_drive_gain_err_pct": gains_err,
                "calibrated_joints": [c["calibrated"] for c in gains_cases],
