@@ -153,7 +153,7 @@ def main() -> None:
                       f"inertia {'identified' if inertia_ok else 'not identifiable'}"
                       + (f" (of it: {', '.join(n for n in est['identifiable'] if n.startswith('J')) or 'none'})"
                          if not inertia_ok else "")
-                      + (f" ({', '.join(f'{v:+.0f}' for v in case['principal_inertia_err_pct'])} %)" if inertia_ok else ""),
+                      + (f" ({', '.join(f'{v:+.0f}' for v in case['principal_inertia_err_pct'])} %)" if inertia_ok else "")
                       + (f"; free inertia: σ {case['inertia_sigma_kg_m2']:.2e} kg·m² = {case['inertia_sigma_ratio']:.2f} × "
                          f"the 15 % rule, principal {', '.join(f'{v:+.0f}' for v in case['free_principal_err_pct'])} %"
                          if args.inertia_sigma else ""),
