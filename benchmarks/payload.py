@@ -3,7 +3,7 @@ with the realistic preset of unmodelled effects on.
 
 Per seed: the arm is identified (``urident identify``, paper model plus offset, load-friction and
 Stribeck columns) on the robot's identification trajectory without a load; then each payload
-(0.3 to 10 kg, off-axis centre of mass, a full inertia) rides the payload excitation trajectory
+(0.3, 1, 1.5, 2, 3 and 10 kg, off-axis centre of mass, a full inertia) rides the payload excitation trajectory
 (``experiments/ROBOT_payload.yaml``, from ``urident excite --for-payload``) and ``urident payload``
 estimates it with that arm and a tare: the same trajectory run without the tool (``--unloaded``;
 ``--no-tare`` to leave it out). Drive gains: ``torque_constant_error`` on, the payload trajectory
@@ -13,6 +13,7 @@ inertia identifiable. Prints one line per case; the last line is one JSON object
 
     python benchmarks/payload.py [--robot ur10e] [--seeds 1,2,3] [--trajectory FILE] [--no-tare]
                                  [--gains-trajectory FILE] [--payloads 0,3] [--no-gains | --gains-only]
+                                 [--inertia-sigma]
 """
 
 from __future__ import annotations
@@ -32,6 +33,8 @@ ROOT = Path(__file__).resolve().parent.parent
 PAYLOADS = [  # mass [kg], centre of mass [m] (flange), [Ixx, Iyy, Izz], [Ixy, Ixz, Iyz] about it
     (0.3, [0.0, 0.01, 0.03], [4e-4, 4e-4, 2e-4], [0.0, 0.0, 0.0]),
     (1.0, [0.02, -0.01, 0.06], [3e-3, 4e-3, 2e-3], [2e-4, 0.0, -1e-4]),
+    (1.5, [0.02, 0.01, 0.07], [6e-3, 8e-3, 4e-3], [3e-4, -2e-4, 1e-4]),
+    (2.0, [0.025, -0.015, 0.075], [0.01, 0.013, 0.007], [5e-4, -1e-3, 2e-4]),
     (3.0, [0.03, 0.02, 0.08], [0.02, 0.025, 0.015], [1e-3, -2e-3, 5e-4]),
     (10.0, [0.0, 0.05, 0.10], [0.08, 0.06, 0.05], [0.0, 5e-3, 0.0]),
 ]
@@ -55,6 +58,28 @@ def _effects(path: Path, extra: list[dict]) -> Path:
     return path
 
 
+def _inertia_sigma(spec, arm_path: Path, log: Path, tare_log: Path | None, true_i: np.ndarray) -> dict:
+    """The case refit with the inertia kept free (its tolerance rule off): the largest σ of the
+    inertia entries, as a multiple of the rule's 15 % of the true mean principal inertia."""
+    import urident.ident.payload as payload_module
+    from urident.ident import load_params, predict_recordings
+    from urident.logs import load_log
+
+    arm = load_params(arm_path)
+    tare = None if tare_log is None else predict_recordings(arm, [load_log(tare_log)], spec).data
+    saved = dict(payload_module.TOLERANCES)
+    payload_module.TOLERANCES.update(inertia_rel=np.inf, inertia_abs=np.inf)   # the σ rule off
+    try:
+        est = payload_module.estimate_payload(arm, spec, predict_recordings(arm, [load_log(log)], spec).data,
+                                              unloaded=tare)
+    finally:
+        payload_module.TOLERANCES.update(saved)
+    sigma = float(np.nanmax(np.array(est.ols.sigma["inertia_kg_m2"], dtype=float)))
+    free = np.linalg.eigvalsh(est.ols.inertia_kg_m2)
+    return {"inertia_sigma_kg_m2": sigma, "inertia_sigma_ratio": sigma / (0.15 * true_i.mean()),
+            "free_principal_err_pct": [float(v) for v in 100 * (free / true_i - 1)]}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--robot", default="ur10e")
@@ -69,6 +94,8 @@ def main() -> None:
     ap.add_argument("--no-tare", dest="tare", action="store_false",
                     help="no unloaded run of the payload trajectory (urident payload without --unloaded)")
     ap.add_argument("--workdir", default=None, help="keep the runs in this directory (default: a temporary one)")
+    ap.add_argument("--inertia-sigma", action="store_true",
+                    help="also fit each case with the inertia kept free and print its σ against the 15 %% rule")
     args = ap.parse_args()
     from urident.ident.payload import Payload
     from urident.model import load_robot
@@ -119,10 +146,17 @@ def main() -> None:
                         "inertia_identifiable": inertia_ok,
                         "principal_inertia_err_pct": [float(v) for v in 100 * (est_i / true_i - 1)],
                         "identifiable": est["identifiable"]}
+                if args.inertia_sigma:
+                    case.update(_inertia_sigma(spec, arm, log, tare_log if args.tare else None, true_i))
                 cases.append(case)
                 print(f"seed {seed}, {mass:5.1f} kg: mass {case['mass_err_pct']:+.2f} %, CoM {case['com_err_mm']:.2f} mm, "
                       f"inertia {'identified' if inertia_ok else 'not identifiable'}"
-                      + (f" ({', '.join(f'{v:+.0f}' for v in case['principal_inertia_err_pct'])} %)" if inertia_ok else ""),
+                      + (f" (of it: {', '.join(n for n in est['identifiable'] if n.startswith('J')) or 'none'})"
+                         if not inertia_ok else "")
+                      + (f" ({', '.join(f'{v:+.0f}' for v in case['principal_inertia_err_pct'])} %)" if inertia_ok else "")
+                      + (f"; free inertia: σ {case['inertia_sigma_kg_m2']:.2e} kg·m² = {case['inertia_sigma_ratio']:.2f} × "
+                         f"the 15 % rule, principal {', '.join(f'{v:+.0f}' for v in case['free_principal_err_pct'])} %"
+                         if args.inertia_sigma else ""),
                       flush=True)
             if args.no_gains:
                 continue
@@ -154,6 +188,8 @@ def main() -> None:
                "gains_trajectory": str(gains_traj.name),
                "max_mass_err_pct": mass_err, "max_com_err_mm": com_err,
                "inertia_identified_cases": len(with_inertia), "cases": len(cases),
+               "inertia_identified_by_mass": {f"{m:g}": sum(c["inertia_identifiable"] for c in cases if c["mass_kg"] == m)
+                                              for m in sorted({c["mass_kg"] for c in cases})},
                "max_principal_inertia_err_pct": inertia_err,
                "max_calibrated_drive_gain_err_pct": gains_err,
                "calibrated_joints": [c["calibrated"] for c in gains_cases],

@@ -118,7 +118,7 @@ def _bad_values(action: argparse.Action) -> st.SearchStrategy[str]:
     if kind == "names":
         return st.one_of(st.sampled_from(["abc", "nan", ",", "x,y"]),
                          st.text(string.ascii_lowercase, min_size=1, max_size=8).map(lambda t: "zz" + t))
-    if kind == "com_vector":
+    if kind == "payload_com":
         return st.one_of(always, st.sampled_from(["1,2", "1,2,3,4", "1,nan,2"]))
     if kind == "tool_capsule":
         return st.one_of(always, st.sampled_from(["0.05", "0,0.1", "-0.05,0.1", "0.05,-0.1", "0.05,nan"]))

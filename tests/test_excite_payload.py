@@ -128,3 +128,95 @@ def test_shipped_payload_trajectory_is_safe_with_its_tool_and_within_the_trackin
     _, qd, _ = loaded.trajectory.evaluate(np.linspace(0.0, loaded.trajectory.duration, 20001))
     assert np.abs(qd).max() * ServoConfig().lookahead_time_s < 0.95 * MonitorConfig().max_tracking_error_rad
     assert _cond(loaded) < 0.75 * _cond(load_trajectory(IDENT))
+
+
+def _low_torque_ident(tmp_path: Path) -> Path:
+    """ur10e_ident.yaml with the torque limits at half the robot's: safe on the empty flange, not with
+    a 10 kg tool (the shoulder and elbow carry its gravity)."""
+    doc = yaml.safe_load(IDENT.read_text())
+    for key in ("q_min_rad", "q_max_rad", "qd_max_rad_s", "qdd_max_rad_s2", "tau_max_nm"):
+        doc["limits"].pop(key)
+    doc["limits"]["torque_fraction"] = 0.5
+    out = tmp_path / "ident_half_torque.yaml"
+    out.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return out
+
+
+TEN_KG = dict(mass_kg=10.0, com_m=[0.0, 0.05, 0.1], inertia_kg_m2=np.diag([0.08, 0.06, 0.05]))
+
+
+def test_a_payload_enters_the_torque_check_and_the_file_records_it(tmp_path, capsys):
+    from urident.excitation import trajectory_document, write_trajectory
+    from urident.ident.payload import Payload
+    from urident.session.runner import plan_motion
+
+    path = _low_torque_ident(tmp_path)
+    loaded = load_trajectory(path)
+    assert loaded.payload is None                      # a file without a payload: the empty flange
+    tool = Payload("ur10e", **TEN_KG)
+    empty = check_trajectory(loaded.spec, loaded.trajectory, limits=loaded.limits, collision_backend="numpy")
+    heavy = check_trajectory(loaded.spec, loaded.trajectory, limits=loaded.limits, collision_backend="numpy",
+                             payload=tool)
+    assert empty.ok and not heavy.ok and heavy.payload_kg == 10.0
+    assert {v.constraint for v in heavy.violations} == {"torque"}
+    assert np.all(heavy.margins["torque"] < empty.margins["torque"] + 1e-9)   # the worse of both, per joint
+    assert main(["check-trajectory", str(path)]) == 0
+    capsys.readouterr()
+    assert main(["check-trajectory", str(path), "--payload-mass", "10", "--payload-com", "0,0.05,0.1"]) == 3
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "torque limit" in err
+
+    recorded = tmp_path / "recorded.yaml"          # the payload round-trips through the file
+    write_trajectory(recorded, trajectory_document("ur10e", loaded.trajectory, loaded.limits, payload=tool))
+    back = load_trajectory(recorded).payload
+    assert back.mass_kg == tool.mass_kg
+    np.testing.assert_array_equal(back.com_m, tool.com_m)
+    np.testing.assert_array_equal(back.inertia_kg_m2, tool.inertia_kg_m2)
+    assert main(["check-trajectory", str(recorded)]) == 3          # the recorded load is checked
+    assert "torque limit" in capsys.readouterr().err
+    assert main(["check-trajectory", str(recorded), "--payload-mass", "1"]) == 0   # a given one replaces it
+    spec = load_robot("ur10e")
+    with pytest.raises(SafetyError, match="torque limit"):          # urident run's preflight
+        plan_motion(spec, recorded, spec.controller_rate_hz, 1, 0.5)
+    with pytest.raises(SafetyError, match="torque limit"):
+        plan_motion(spec, path, spec.controller_rate_hz, 1, 0.5, payload=tool)
+    assert plan_motion(spec, path, spec.controller_rate_hz, 1, 0.5).payload is None
+
+
+def test_a_payload_above_the_rated_one_is_refused(tmp_path, capsys):
+    from urident.excitation import trajectory_document, write_trajectory
+    from urident.ident.payload import Payload
+
+    loaded = load_trajectory(IDENT)
+    for argv in (["check-trajectory", str(IDENT), "--payload-mass", "12.6"],
+                 ["excite", "--robot", "ur10e", "--out", str(tmp_path / "x.yaml"), "--payload-mass", "13"],
+                 ["check-trajectory", str(IDENT), "--payload-mass", "2", "--payload", "p.yaml"],
+                 ["check-trajectory", str(IDENT), "--payload-com", "0,0,0.1"]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "Traceback" not in err
+    assert not (tmp_path / "x.yaml").exists()
+    heavy = tmp_path / "heavy.yaml"
+    write_trajectory(heavy, trajectory_document("ur10e", loaded.trajectory, loaded.limits,
+                                                payload=Payload("ur10e", 13.0, [0, 0, 0.1], np.zeros((3, 3)))))
+    with pytest.raises(ConfigError, match=r"heavy.yaml: payload.mass_kg: payload 13 kg exceeds the rated "
+                                          r"payload of UR10e \(12.5 kg"):
+        load_trajectory(heavy)
+
+
+def test_excite_with_a_payload_mass_records_it_and_caps_a_fast_wrist(tmp_path, capsys):
+    from urident.session.config import MonitorConfig, ServoConfig
+
+    out = tmp_path / "t.yaml"
+    assert main(["excite", "--robot", "ur3e", "--for-payload", "--tool-capsule", "0.04,0.1", "--payload-mass", "3",
+                 "--payload-com", "0,0,0.08", "--out", str(out), "--harmonics", "2", "--duration", "6",
+                 "--iterations", "3", "--starts", "1", "--quiet"]) == 0
+    assert "payload 3 kg (--payload-mass)" in capsys.readouterr().out
+    loaded = load_trajectory(out)
+    assert loaded.payload.mass_kg == 3.0 and list(loaded.payload.com_m) == [0.0, 0.0, 0.08]
+    # a UR3e wrist's 0.7 × 6.28 rad/s would lag 0.44 rad behind servoJ's 0.1 s lookahead: capped
+    _, qd, _ = loaded.trajectory.evaluate(np.linspace(0.0, loaded.trajectory.duration, 6001))
+    assert loaded.limits.qd_max[3:].min() * ServoConfig().lookahead_time_s > MonitorConfig().max_tracking_error_rad
+    assert np.abs(qd).max() * ServoConfig().lookahead_time_s <= 0.9 * MonitorConfig().max_tracking_error_rad + 1e-4
+    assert main(["check-trajectory", str(out)]) == 0
+    assert "payload in the torque check" in capsys.readouterr().out

@@ -253,3 +253,21 @@ def test_payload_with_a_tare_run_of_the_same_trajectory(runs, capsys):
     _one_line_exit2(capsys, ["payload", str(runs / "load.csv"), "--params", str(runs / "arm_params.yaml"),
                              "--unloaded", str(runs / "still.csv"), "--out", str(runs / "x.yaml")],
                     "unloaded logs: the wrist joints")
+
+
+def test_a_tare_from_rows_of_another_log_must_be_the_same_motion(runs, capsys):
+    """``--unloaded-rows``: the tare's rows apart from the loaded logs' ``--rows``; refused unless the
+    two selections are the same motion (joints within 0.05 rad)."""
+    args = ["payload", str(runs / "load_ident.csv"), "--params", str(runs / "arm_params.yaml"),
+            "--rows", "301-1000", "--unloaded", str(runs / "arm.csv"), "--out", str(runs / "part.yaml")]
+    capsys.readouterr()
+    assert main([*args, "--unloaded-rows", "301-1000"]) == 0
+    assert "tare: 1 unloaded log(s) of" in capsys.readouterr().out
+    _one_line_exit2(capsys, [*args, "--unloaded-rows", "341-1040", "--overwrite"],
+                    f"--unloaded {runs / 'arm.csv'} rows 341-1040: not the same motion as the loaded log")
+    _one_line_exit2(capsys, [*args, "--unloaded-rows", "301-1300", "--overwrite"], "the loaded log's")
+    _one_line_exit2(capsys, ["payload", str(runs / "load.csv"), "--params", str(runs / "arm_params.yaml"),
+                             "--unloaded", str(runs / "arm.csv"), "--out", str(runs / "x.yaml")],
+                    "tolerance 0.05 rad")
+    _one_line_exit2(capsys, ["payload", str(runs / "load.csv"), "--params", str(runs / "arm_params.yaml"),
+                             "--unloaded-rows", "1-100", "--out", str(runs / "x.yaml")], "--unloaded-rows needs")

@@ -170,3 +170,14 @@ def test_signal_before_motion_is_one_line_exit_130(name, tmp_path):
     assert str(info.value) == f"terminated by {name} before any motion: nothing was moved"
     assert info.value.exit_code == 130 and link.closed
     assert signal.getsignal(signum) is before
+
+
+def test_a_declared_payload_heavier_than_the_checked_one_is_refused():
+    from urident.errors import SafetyError
+    from urident.session.preflight import check_declared_payload
+
+    check_declared_payload(None, 0.0, "t.yaml")          # a controller that publishes no payload
+    check_declared_payload(2.0, 2.0005, "t.yaml")        # lighter (or the same) is covered by the check
+    check_declared_payload(2.0005, 2.0, "t.yaml")        # within the 1 g rounding allowance
+    with pytest.raises(SafetyError, match=r"declares a payload of 2.5 kg, heavier than the 2 kg t.yaml"):
+        check_declared_payload(2.5, 2.0, "t.yaml")

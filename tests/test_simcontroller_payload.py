@@ -98,14 +98,23 @@ def test_urident_run_records_the_declared_payload_and_reports_show_it(tmp_path):
             control.stopScript()
         finally:
             control.disconnect()
-        r = subprocess.run([sys.executable, "-m", "urident.cli.main", "run", "--robot", "ur5e", "--host", host,
-                            "--trajectory", str(traj), "--out", str(out), "--config", str(config), "--yes"],
+        run = [sys.executable, "-m", "urident.cli.main", "run", "--robot", "ur5e", "--host", host,
+               "--trajectory", str(traj), "--config", str(config)]
+        # checked for the empty flange, the controller told 1.5 kg: refused before any motion
+        refused = subprocess.run([*run, "--check-only"], capture_output=True, text=True, timeout=120,
+                                 stdin=subprocess.DEVNULL)
+        r = subprocess.run([*run, "--out", str(out), "--yes", "--payload-mass", "1.5", "--payload-com", "0,0.01,0.07"],
                            capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL)
+    assert refused.returncode == 3, refused.stderr
+    line = refused.stderr.strip().splitlines()
+    assert len(line) == 1 and "declares a payload of 1.5 kg, heavier than the 0 kg" in line[0]
     assert r.returncode == 0, r.stderr
+    assert "torques checked with 1.5 kg" in r.stdout
     recorded = declared_payload(load_log(out).metadata)
     assert recorded is not None
     assert recorded["mass_kg"] == pytest.approx(mass) and recorded["cog_m"] == pytest.approx(cog)
     assert recorded["inertia_kg_m2"] == pytest.approx(inertia)
+    assert load_log(out).metadata["extra"]["checked_payload_kg"] == 1.5   # what the torque check included
     report = io.StringIO()   # what validate, gap, identify and payload print for every log they load
     load_log_from_args(out, argparse.Namespace(), robot="ur5e", report=report)
     assert "payload declared to the controller" in report.getvalue() and "1.5 kg" in report.getvalue()

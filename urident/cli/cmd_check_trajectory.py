@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from urident.cli import options
 from urident.cli.options import positive_float
 
 
@@ -19,6 +20,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--rate", type=positive_float, default=None,
                    help="check rate [Hz] (default: the robot's controller rate)")
     p.add_argument("--json", action="store_true", help="print the report as one JSON object")
+    options.add_checked_payload_arguments(p, "check the torques with this load instead of the one the "
+                                             "file records")
     p.set_defaults(func=run)
 
 
@@ -27,10 +30,13 @@ def run(args: argparse.Namespace) -> int:
     from urident.excitation.files import load_trajectory
 
     loaded = load_trajectory(args.file)
-    report = check_trajectory(loaded.spec, loaded.trajectory, rate_hz=args.rate, limits=loaded.limits)
+    payload, source = options.checked_payload(args, loaded.spec, loaded.payload, f"{args.file}: payload")
+    report = check_trajectory(loaded.spec, loaded.trajectory, rate_hz=args.rate, limits=loaded.limits,
+                              payload=payload)
     if args.json:
         tool = loaded.tool.as_dict() if loaded.tool is not None else None
-        print(json.dumps({"file": str(args.file), "tool_capsule": tool, **report.as_dict()}))
+        print(json.dumps({"file": str(args.file), "tool_capsule": tool, "payload_source": source,
+                          **report.as_dict()}))
     else:
         traj = loaded.trajectory
         print(f"{args.file}: {loaded.spec.description}, L = {traj.harmonics}, {traj.duration:g} s, "
@@ -38,6 +44,10 @@ def run(args: argparse.Namespace) -> int:
         if loaded.tool is not None:
             print(f"  tool capsule on the flange (from the file): radius {loaded.tool.radius_m:g} m, "
                   f"length {loaded.tool.length_m:g} m, checked against every link and the floor")
+        if payload is not None:
+            print(f"  payload in the torque check ({source}): {payload.describe()}; checked with and without it")
+        else:
+            print("  torque check with the empty flange (no payload recorded or given)")
         width = max(len(n) for n in report.joint_names)
         units = {**UNITS, "rest": "rad/s, rad/s^2"}
         print(f"  {'tightest margin':<28}" + "".join(f"{n:>{width + 2}}" for n in report.joint_names))

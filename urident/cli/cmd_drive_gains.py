@@ -9,14 +9,6 @@ import sys
 from urident.cli import options
 
 
-def com_vector(text: str) -> tuple[float, ...]:
-    """``x,y,z`` [m] in the tool flange frame (``--payload-com``)."""
-    try:
-        return options.parse_numbers(text, 3)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-
-
 def register(subparsers: argparse._SubParsersAction) -> None:
     from urident.logs import add_log_arguments
 
@@ -30,10 +22,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--robot", required=True, help="robot name or robot file")
     p.add_argument("--without", required=True, nargs="+", metavar="LOG", help="log(s) without the load")
     p.add_argument("--with", dest="with_", required=True, nargs="+", metavar="LOG", help="log(s) with the load")
-    p.add_argument("--payload-mass", type=options.positive_float, required=True, metavar="KG",
-                   help="the known load's mass [kg]")
-    p.add_argument("--payload-com", type=com_vector, default=(0.0, 0.0, 0.0), metavar="X,Y,Z",
-                   help="its centre of mass in the tool flange frame [m] (default 0,0,0)")
+    options.add_payload_mass_arguments(p, required=True, what="the known load in the --with runs")
     p.add_argument("--out", required=True, metavar="GAINS.yaml", help="drive-gains file to write")
     p.add_argument("--json-out", metavar="FILE", default=None, help="also write the result as JSON")
     p.add_argument("--reduced", action="store_true", help="the reduced base set for the arm")
@@ -57,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
 
     from urident.ident import PreprocessConfig, prepare
     from urident.ident.gains_file import save_gains
-    from urident.ident.payload import Payload, check_wrist_motion
+    from urident.ident.payload import check_wrist_motion
     from urident.ident.torque import estimate_drive_gains
     from urident.logs import load_log_from_args
     from urident.model import load_robot
@@ -71,11 +60,11 @@ def run(args: argparse.Namespace) -> int:
         data = prepare(recs, spec, PreprocessConfig(), np.ones(6))   # tau = current [A]
         runs.append((data.q, data.qd, data.qdd, data.tau))
     check_wrist_motion(runs[1][0], "--with logs")
-    payload = Payload(spec.name, args.payload_mass, args.payload_com, np.zeros((3, 3)))
+    payload = options.point_payload(args, spec)
     est = estimate_drive_gains(spec, runs[0], runs[1], payload.body_params(spec), reduced=args.reduced,
                                offset=True)
     data = {"without": list(args.without), "with": list(args.with_), "payload_mass_kg": args.payload_mass,
-            "payload_com_m": list(args.payload_com), "robot_file_gains": [float(g) for g in spec.drive_gains]}
+            "payload_com_m": [float(v) for v in payload.com_m], "robot_file_gains": [float(g) for g in spec.drive_gains]}
     save_gains(args.out, spec.name, est.gains, est.sigma, METHOD, data, overwrite=args.overwrite)
     rel = 100 * est.sigma / np.abs(est.gains)
     calibrated = [bool(r <= CALIBRATED_PCT) for r in rel]

@@ -13,12 +13,21 @@ MAX_HARMONICS = 100      # what trajectory files allow (urident.excitation.files
 MAX_DURATION_S = 3600.0
 SAMPLES_PER_PERIOD = 10  # the highest harmonic gets at least this many controller ticks
 # --for-payload: the inertia needs acceleration, so two base periods in 30 s (2.7 times the
-# frequency of one in 20 s); the wrist then runs at its velocity limit, kept at 0.7 so that
-# servoJ's lag (q̇ × 0.1 s lookahead) stays inside the session's 0.25 rad tracking monitor on a
-# 3.14 rad/s wrist. Measured with benchmarks/payload.py (README).
+# frequency of one in 20 s); the wrist then runs near its velocity limit, kept at 0.7 of it and
+# within payload_velocity_cap (servoJ's lag on a fast wrist). Measured with benchmarks/payload.py (README).
 PAYLOAD_PERIODS = 2
 PAYLOAD_DURATION_S = 30.0
 PAYLOAD_VELOCITY_FRACTION = 0.7
+PAYLOAD_LAG_SHARE = 0.9       # of the tracking monitor that servoJ's lag bound may use
+
+
+def payload_velocity_cap() -> float:
+    """--for-payload's |q̇| bound [rad/s]: servoJ's lag, bounded by q̇ × the session's default
+    lookahead (0.1 s), within 0.9 of its default tracking monitor (0.25 rad): 2.25 rad/s, which
+    binds on wrists faster than 0.7 × 3.2 rad/s (UR3e/UR3, UR20/UR30)."""
+    from urident.session.config import MonitorConfig, ServoConfig
+
+    return PAYLOAD_LAG_SHARE * MonitorConfig().max_tracking_error_rad / ServoConfig().lookahead_time_s
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -52,7 +61,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="L-BFGS-B iterations per start (default 100)")
     p.add_argument("--velocity-fraction", type=options.fraction, default=None,
                    help=f"|q̇| ≤ fraction · robot limit (default 0.8; {PAYLOAD_VELOCITY_FRACTION} with "
-                        "--for-payload)")
+                        "--for-payload, which also keeps |q̇| within 2.25 rad/s: servoJ's lag inside "
+                        "the session's tracking monitor)")
     p.add_argument("--acceleration-fraction", type=options.fraction, default=None,
                    help="|q̈| ≤ fraction · robot limit (default 1.0)")
     p.add_argument("--torque-fraction", type=options.fraction, default=None,
@@ -71,7 +81,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "the arm's parameters known), joints 1-3 within 20 %% of their velocity and "
                         "acceleration limits (wrist-dominated); needs the tool's size "
                         "(--tool-capsule or a --payload file with a capsule)")
-    options.add_payload_argument(p, "its capsule (if any) is the tool's size for the collision checks")
+    options.add_checked_payload_arguments(p, "the torque checks include it (with and without it) and "
+                                             "its capsule (if any) is the tool's size for the collision "
+                                             "checks; the trajectory file records it")
     options.add_tool_capsule_argument(p)
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=run)
@@ -91,7 +103,8 @@ def run(args: argparse.Namespace) -> int:
 
     out = options.output_path("--out", args.out, args.overwrite)
     spec = load_robot(args.robot)
-    tool, tool_source = _tool(args, spec)
+    payload, payload_source = options.checked_payload(args, spec)
+    tool, tool_source = _tool(args, payload)
     if args.for_payload and tool is None:
         raise ConfigError("--for-payload needs the tool's size for the collision checks: give "
                           "--tool-capsule RADIUS,LENGTH or a --payload file with a capsule")
@@ -120,7 +133,8 @@ def run(args: argparse.Namespace) -> int:
         settings = ExcitationSettings(harmonics=args.harmonics, duration_s=args.duration,
                                       periods=args.periods, criterion=args.criterion,
                                       reduced=args.reduced, seed=args.seed, margins=margins,
-                                      for_payload=args.for_payload)
+                                      for_payload=args.for_payload,
+                                      max_velocity_rad_s=payload_velocity_cap() if args.for_payload else None)
         if args.q0 is not None:
             settings = replace(settings, q0=tuple(args.q0))
         if args.starts is not None:
@@ -132,7 +146,7 @@ def run(args: argparse.Namespace) -> int:
     progress = None if args.quiet else (lambda message: print(f"urident excite: {message}", file=sys.stderr,
                                                                 flush=True))
     try:
-        result = optimize_excitation(spec, settings, progress=progress)
+        result = optimize_excitation(spec, settings, progress=progress, payload=payload)
     except ValueError as exc:
         raise ConfigError(f"cannot optimise an excitation for {spec.name}: {exc}") from None
 
@@ -148,14 +162,15 @@ def run(args: argparse.Namespace) -> int:
                     "wall_s": round(result.wall_s, 3), "evaluations": result.evaluations}
     criteria = {**result.criteria.as_dict(), "rate_hz": spec.controller_rate_hz, "reduced": settings.reduced}
     if settings.for_payload:
-        optimization.update(for_payload=True, arm_joint_fraction=settings.arm_joint_fraction)
+        optimization.update(for_payload=True, arm_joint_fraction=settings.arm_joint_fraction,
+                            max_velocity_rad_s=settings.max_velocity_rad_s)
         criteria["payload_cond"] = result.payload_cond
-    report = check_trajectory(spec, result.trajectory, limits=result.limits)
+    report = check_trajectory(spec, result.trajectory, limits=result.limits, payload=payload)
     report.raise_if_unsafe(f"{args.out} (not written)")
     check = {"ok": report.ok, "rate_hz": report.rate_hz, "min_distance_m": report.min_distance_m,
              "min_distance_pair": report.min_distance_pair, "collision_margin_m": report.collision_margin_m}
     document = trajectory_document(robot_ref, result.trajectory, result.limits, optimization, criteria, check,
-                                   tool=tool)
+                                   tool=tool, payload=payload)
     what = (f"payload excitation (wrist-dominated): cond of the payload columns = {result.payload_cond:.4g};\n"
             if settings.for_payload else "")
     header = (f"urident excitation trajectory for {spec.description}: Kovincic et al. (2019) eq. (25),\n"
@@ -163,12 +178,15 @@ def run(args: argparse.Namespace) -> int:
               f"(cond Λ = {result.criteria.cond_lambda:.4g}; columns scaled by reference RMS).\n"
               + (f"Tool capsule (collision checks): radius {tool.radius_m:g} m, length {tool.length_m:g} m "
                  f"along the flange z axis ({tool_source}).\n" if tool is not None else "")
+              + (f"Torque checks include the payload ({payload_source}): {payload.describe()}.\n"
+                 if payload is not None else "")
               + f"Re-check with: urident check-trajectory {args.out}")
     # what check-trajectory will read: the written text, parsed back and checked before writing
     text = trajectory_text(document, header)
     loaded = parse_trajectory_document(parse_yaml(text, f"{out} (not written)"), out)
     if not _same(loaded, result):  # the dense check above holds for the file only if it reads back exactly
-        check_trajectory(loaded.spec, loaded.trajectory, limits=loaded.limits).raise_if_unsafe(
+        check_trajectory(loaded.spec, loaded.trajectory, limits=loaded.limits,
+                         payload=loaded.payload).raise_if_unsafe(
             f"{args.out} (not written)")
     write_trajectory(out, document, header, overwrite=args.overwrite)
     print(f"wrote {args.out}: {spec.name}, L = {settings.harmonics}, {settings.duration_s:g} s, "
@@ -176,6 +194,9 @@ def run(args: argparse.Namespace) -> int:
           + f"cond(Θ̄_B) = {result.criteria.cond_theta:.4g} (cond Λ = {result.criteria.cond_lambda:.4g}, "
           f"{result.criteria.n_base} base parameters), min distance {report.min_distance_m:.4f} m "
           f"({report.min_distance_pair}), {result.wall_s:.1f} s")
+    if payload is not None:
+        print(f"payload {payload.mass_kg:g} kg ({payload_source}): recorded in the file, the torque checks "
+              f"hold with and without it (check-trajectory, run)")
     if tool is not None:
         print(f"tool capsule radius {tool.radius_m:g} m, length {tool.length_m:g} m ({tool_source}): "
               f"recorded in the file, part of every check of it (check-trajectory, run)")
@@ -186,11 +207,10 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _tool(args: argparse.Namespace, spec):
+def _tool(args: argparse.Namespace, payload):
     """The tool's capsule and where it came from: --tool-capsule, else the --payload file's."""
     from urident.model.robot import ToolCapsule
 
-    payload = options.load_payload_arg(args, spec)
     if args.tool_capsule is not None:
         return args.tool_capsule, "--tool-capsule"
     cap = payload.info.get("capsule") if payload is not None else None

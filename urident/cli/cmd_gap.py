@@ -4,7 +4,6 @@ validation residual lies, which unmodelled effect of the catalogue causes it, ho
 from __future__ import annotations
 
 import argparse
-import copy
 import json
 import sys
 
@@ -82,11 +81,8 @@ def _load_all(paths, args, rows_text, robot, what):
     from urident.logs import load_log_from_args
     from urident.progress import progress_iter
 
-    a = args
-    if rows_text is not None:
-        a = copy.copy(args)
-        a.log_rows = rows_text
-    return [load_log_from_args(path, a, robot=robot) for path in progress_iter(paths, f"loading {what} logs")]
+    return [load_log_from_args(path, args, robot=robot, rows=rows_text)
+            for path in progress_iter(paths, f"loading {what} logs")]
 
 
 def _logs_used(recordings, title: str) -> str:

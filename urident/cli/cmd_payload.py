@@ -43,7 +43,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--unloaded", nargs="+", metavar="LOG", default=None,
                    help="runs of the same trajectory without the tool (a tare): the arm model's own "
                         "errors on that motion (its last body, friction, offsets) are fit on both and "
-                        "removed, which small tools and the inertia need")
+                        "removed, which small tools and the inertia need; refused unless each is the "
+                        "motion of a loaded log over the selected rows (joints within 0.05 rad)")
+    p.add_argument("--unloaded-rows", metavar="FIRST-LAST", type=options.row_range, default=None,
+                   help="rows of the --unloaded logs (overrides --rows for them): a tare for a part of "
+                        "a loaded run, from a run whose motion starts at another row")
     p.add_argument("--robot", default=None, help="robot (default: the parameters file's)")
     p.add_argument("--out", required=True, metavar="PAYLOAD.yaml", help="payload file to write")
     p.add_argument("--json-out", metavar="FILE", default=None, help="also write the result as JSON")
@@ -60,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
     from urident.errors import ConfigError
     from urident.ident import load_params, predict_recordings
     from urident.ident.identify import check_compatible
-    from urident.ident.payload import estimate_payload
+    from urident.ident.payload import check_same_motion, check_wrist_motion, estimate_payload
     from urident.ident.payload_file import save_payload
     from urident.logs import load_log_from_args
     from urident.model import load_robot
@@ -75,8 +79,16 @@ def run(args: argparse.Namespace) -> int:
     recordings = [load_log_from_args(p, args, robot=spec.name) for p in args.logs]
     prediction = predict_recordings(arm, recordings, spec, drive_gains=args.drive_gains or None)
     unloaded = None
+    if args.unloaded_rows is not None and not args.unloaded:
+        raise ConfigError("--unloaded-rows needs --unloaded LOG")
     if args.unloaded:
-        tare = [load_log_from_args(p, args, robot=spec.name) for p in args.unloaded]
+        tare = [load_log_from_args(p, args, robot=spec.name, rows=args.unloaded_rows) for p in args.unloaded]
+        rows = args.unloaded_rows or getattr(args, "log_rows", None)
+        shown_rows = f" rows {rows[0]}-{rows[1]}" if rows else ""
+        for rec in tare:   # the clearer message first: a still wrist is no tare of a payload motion
+            check_wrist_motion(rec.q, "unloaded logs")
+        check_same_motion([(str(p), r.t, r.q) for p, r in zip(args.logs, recordings)],
+                          [(f"--unloaded {p}{shown_rows}", r.t, r.q) for p, r in zip(args.unloaded, tare)])
         unloaded = predict_recordings(arm, tare, spec, drive_gains=args.drive_gains or None).data
     est = estimate_payload(arm, spec, prediction.data, args.mass_range, unloaded=unloaded)
     gains = prediction.data.drive_gains

@@ -29,6 +29,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     options.add_rerun_arguments(p, "run live")
     p.add_argument("--record-periods", action="store_true",
                    help="also save every control period [s] to LOG.periods.npy (timing analysis)")
+    options.add_checked_payload_arguments(p, "the load mounted for this run: the trajectory's torques are "
+                                             "checked with it (default: the load the trajectory file "
+                                             "records); a heavier payload declared to the controller is "
+                                             "refused")
     p.add_argument("--params", type=Path,
                    help="parameters for the live predicted torque (urident identify output; default nominal)")
     p.set_defaults(func=run)
@@ -56,12 +60,13 @@ def run(args: argparse.Namespace) -> int:
     from urident.excitation import load_trajectory
     from urident.model import load_robot
 
-    load_robot(args.robot)  # input files read before connecting: a bad one contacts nothing
+    spec = load_robot(args.robot)  # input files read before connecting: a bad one contacts nothing
     load_trajectory(args.trajectory)
+    payload, _ = options.checked_payload(args, spec)
     request = RunRequest(robot=args.robot, host=args.host, trajectory=args.trajectory,
                          out=out or Path("unused.csv"), config=load_experiment_config(args.config),
                          repeat=args.repeat, check_only=args.check_only, assume_yes=args.yes,
-                         record_periods=args.record_periods)
+                         record_periods=args.record_periods, payload=payload)
     live = None
     if options.rerun_sink(args) is not None and not args.check_only:
         live = _live_streamer(args)

@@ -376,6 +376,65 @@ def load_payload_arg(args: argparse.Namespace, spec):
     return payload
 
 
+def payload_com(text: str) -> tuple[float, ...]:
+    """``--payload-com x,y,z`` [m]: a load's centre of mass in the tool flange frame."""
+    try:
+        return parse_numbers(text, 3)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def add_payload_mass_arguments(parser: argparse.ArgumentParser, required: bool = False,
+                               what: str = "a point mass on the flange") -> None:
+    """``--payload-mass KG [--payload-com X,Y,Z]``: a load known by its mass and centre of mass."""
+    parser.add_argument("--payload-mass", type=positive_float, required=required, metavar="KG",
+                        help=f"the load's mass [kg]: {what}")
+    parser.add_argument("--payload-com", type=payload_com, default=None, metavar="X,Y,Z",
+                        help="its centre of mass in the tool flange frame [m] (default 0,0,0)")
+
+
+def point_payload(args: argparse.Namespace, spec):
+    """The ``--payload-mass``/``--payload-com`` load as a point mass, or None without a mass."""
+    if getattr(args, "payload_mass", None) is None:
+        if getattr(args, "payload_com", None) is not None:
+            from urident.errors import ConfigError
+
+            raise ConfigError("--payload-com needs --payload-mass")
+        return None
+    import numpy as np
+
+    from urident.ident.payload import Payload
+
+    com = (0.0, 0.0, 0.0) if args.payload_com is None else args.payload_com
+    return Payload(spec.name, args.payload_mass, com, np.zeros((3, 3)))
+
+
+def add_checked_payload_arguments(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--payload PAYLOAD.yaml`` or ``--payload-mass KG [--payload-com X,Y,Z]``: the load the
+    dense torque check includes (``excite``, ``check-trajectory``, ``run``)."""
+    add_payload_argument(parser, what)
+    add_payload_mass_arguments(parser, what="the torque checks include it, as --payload does")
+
+
+def checked_payload(args: argparse.Namespace, spec, recorded=None, recorded_source: str = ""):
+    """(payload, source) for the torque checks: ``--payload`` or ``--payload-mass`` (exclusive),
+    else ``recorded`` (a trajectory file's), else (None, "empty flange"); ConfigError above the
+    robot's rated payload."""
+    from urident.errors import ConfigError
+
+    if getattr(args, "payload", None) is not None and getattr(args, "payload_mass", None) is not None:
+        raise ConfigError("--payload and --payload-mass are exclusive: give the load once")
+    payload, source = load_payload_arg(args, spec), f"--payload {getattr(args, 'payload', None)}"
+    if payload is None:
+        payload, source = point_payload(args, spec), "--payload-mass"
+    if payload is None:
+        payload, source = recorded, recorded_source
+    if payload is None:
+        return None, "empty flange"
+    spec.check_rated_payload(payload.mass_kg, source)
+    return payload, source
+
+
 def tool_capsule(text: str):
     """``--tool-capsule RADIUS,LENGTH`` [m]: a tool's bounding capsule on the flange, its axis from
     the flange centre LENGTH out along the flange z axis (:class:`urident.model.robot.ToolCapsule`);

@@ -2,7 +2,9 @@
 tick, with the tightest margin per constraint and joint (or collision pair).
 
 Constraints: position (inside the margined limits), velocity, acceleration, nominal joint torque
-(the robot file's nominal parameters, |τ| ≤ torque_fraction·τ_max), collision (capsule distances
+(the robot file's nominal parameters, |τ| ≤ torque_fraction·τ_max; with a payload, both the empty
+flange and the payload's torque added: τ is affine in the payload's mass at a fixed centre of mass
+and inertia shape, so the check holds for every lighter load of that shape), collision (capsule distances
 from Pinocchio/coal against each pair's required distance, see :mod:`urident.excitation.collision`)
 and rest (zero velocity and acceleration at the start and the end, so moveJ → servoJ is smooth).
 """
@@ -18,7 +20,8 @@ from urident.errors import SafetyError
 from urident.excitation.collision import CoalDistances, capsule_model
 from urident.excitation.constraints import Limits, kinematic_margins
 from urident.excitation.fourier import sample_times
-from urident.model.regressor import joint_torques
+from urident.model.parameters import tool_body_vector
+from urident.model.regressor import regressor_blocks
 from urident.model.robot import RobotSpec
 
 REST_TOLERANCE = 1e-6   # [rad/s] and [rad/s²] at t = 0 and t = duration
@@ -77,6 +80,7 @@ class CheckReport:
     pair_required: np.ndarray     # (P,) required distance (−inf: pair not checked)
     pair_time: np.ndarray         # (P,)
     violations: tuple[Violation, ...] = field(default=())
+    payload_kg: float = 0.0       # the payload mass the torque check included [kg]
 
     @property
     def ok(self) -> bool:
@@ -118,6 +122,7 @@ class CheckReport:
             "rate_hz": self.rate_hz,
             "n_samples": self.n_samples,
             "duration_s": self.duration,
+            "payload_kg": self.payload_kg,
             "joints": list(self.joint_names),
             "margins": {c: self.margins[c].tolist() for c in JOINT_CONSTRAINTS},
             "margin_times_s": {c: self.times[c].tolist() for c in JOINT_CONSTRAINTS},
@@ -143,10 +148,13 @@ def check_times(duration: float, rate_hz: float) -> np.ndarray:
 
 
 def check_trajectory(spec: RobotSpec, trajectory: Trajectory, rate_hz: float | None = None,
-                     limits: Limits | None = None, collision_backend: str = "coal") -> CheckReport:
+                     limits: Limits | None = None, collision_backend: str = "coal",
+                     payload=None) -> CheckReport:
     """Check ``trajectory`` on the grid ``k / rate_hz`` (default: the robot's controller rate).
     Pure: returns a report; call :meth:`CheckReport.raise_if_unsafe` to turn it into an error.
-    ``collision_backend`` 'coal' (Pinocchio, the reference) or 'numpy' (same numbers, faster)."""
+    ``collision_backend`` 'coal' (Pinocchio, the reference) or 'numpy' (same numbers, faster).
+    ``payload``: a tool on the flange (:class:`urident.ident.payload.Payload`); the torque check
+    then holds with and without it (module doc)."""
     rate = float(spec.controller_rate_hz if rate_hz is None else rate_hz)
     limits = Limits.from_robot(spec) if limits is None else limits
     t = check_times(trajectory.duration, rate)
@@ -154,7 +162,11 @@ def check_trajectory(spec: RobotSpec, trajectory: Trajectory, rate_hz: float | N
     if not all(np.all(np.isfinite(x)) for x in (q, qd, qdd)):
         raise SafetyError(f"trajectory for {spec.name} evaluates to non-finite values")
     km = kinematic_margins(t, q, qd, qdd, limits)
-    tau = joint_torques(spec, spec.nominal_params, q, qd, qdd)
+    blocks = regressor_blocks(spec, q, qd, qdd)
+    tau = blocks @ spec.nominal_params
+    if payload is not None:
+        loaded = tau + blocks @ tool_body_vector(payload.body_params(spec))
+        tau = np.where(np.abs(loaded) > np.abs(tau), loaded, tau)   # the worse of empty and loaded
     tau_margin = limits.tau_max - np.abs(tau)
     k_tau = np.argmin(tau_margin, axis=0)
     ends = np.stack([np.abs(qd[0]), np.abs(qd[-1]), np.abs(qdd[0]), np.abs(qdd[-1])])
@@ -193,7 +205,7 @@ def check_trajectory(spec: RobotSpec, trajectory: Trajectory, rate_hz: float | N
     violations.sort(key=lambda v: v.time_s)
     return CheckReport(spec.name, rate, len(t), float(trajectory.duration), limits, names, margins, times,
                        capsules.pair_names, pair_distance, capsules.required.copy(), t[k_pair],
-                       tuple(violations))
+                       tuple(violations), 0.0 if payload is None else float(payload.mass_kg))
 
 
 def _value_and_limit(constraint: str, j: int, k: int, q, qd, qdd, tau, rest_value,

@@ -30,6 +30,9 @@ Format (``format_version: 1``)::
     tool_capsule: {radius_m: 0.05, length_m: 0.15}   # optional: a tool on the flange (see
                                         # urident.model.robot.ToolCapsule); every check of this
                                         # trajectory (check-trajectory, urident run) includes it
+    payload: {mass_kg: 5.0, com_m: [0, 0, 0.1], inertia_kg_m2: [[..], [..], [..]]}   # optional: the
+                                        # load the torque checks included (flange frame, inertia
+                                        # about the centre of mass; none: the empty flange)
     optimization: {...}                 # optional: criterion, reduced, seed, settings, wall_s
     criteria: {...}                     # optional: cond_theta, cond_lambda, logdet_lambda, ...
     check: {...}                        # optional: rate_hz, min_distance_m, min_distance_pair
@@ -61,7 +64,7 @@ FORMAT_NAME = "urident-excitation-trajectory"
 FORMAT_VERSION = 1
 MAX_HARMONICS = 100
 _TOP_KEYS = {"format", "format_version", "urident_version", "robot", "trajectory", "limits",
-             "tool_capsule", "optimization", "criteria", "check"}
+             "tool_capsule", "payload", "optimization", "criteria", "check"}
 _REQUIRED_TOP = ("format", "format_version", "robot", "trajectory", "limits")
 _TRAJ_KEYS = {"harmonics", "duration_s", "base_frequency_rad_s", "q0_rad", "a_rad_s", "b_rad_s",
               "q_start_rad"}
@@ -71,7 +74,7 @@ _ABS_LIMIT_KEYS = {"q_min_rad": "q_min", "q_max_rad": "q_max", "qd_max_rad_s": "
                    "qdd_max_rad_s2": "qdd_max", "tau_max_nm": "tau_max"}
 _OPT_KEYS = {"criterion", "reduced", "seed", "starts", "iterations", "criterion_samples",
              "collision_samples", "limit_samples", "periods", "wall_s", "evaluations", "for_payload",
-             "arm_joint_fraction"}
+             "arm_joint_fraction", "max_velocity_rad_s"}
 _CRITERIA_KEYS = {"cond_theta", "cond_lambda", "logdet_lambda", "cond_theta_raw", "cond_theta_equilibrated", "n_samples",
                   "n_base", "rate_hz", "reduced", "payload_cond"}
 _CHECK_KEYS = {"rate_hz", "min_distance_m", "min_distance_pair", "collision_margin_m", "ok"}
@@ -91,6 +94,7 @@ class TrajectoryFile:
     optimization: dict[str, Any] = field(default_factory=dict)
     criteria: dict[str, Any] = field(default_factory=dict)
     check: dict[str, Any] = field(default_factory=dict)
+    payload: Any = None              # urident.ident.payload.Payload the torque checks included, or None
 
     @property
     def criterion(self) -> str | None:
@@ -114,9 +118,10 @@ def trajectory_document(robot: str, trajectory: FourierTrajectory, limits: Limit
                         optimization: dict[str, Any] | None = None,
                         criteria: dict[str, Any] | None = None,
                         check: dict[str, Any] | None = None,
-                        tool: ToolCapsule | None = None) -> dict[str, Any]:
+                        tool: ToolCapsule | None = None, payload: Any = None) -> dict[str, Any]:
     """The YAML document (plain Python types) for a trajectory file (``tool``: the mounted tool
-    its checks include)."""
+    its checks include; ``payload``: the load its torque checks include, a
+    :class:`urident.ident.payload.Payload`)."""
     omega = trajectory.omega
     shared = bool(np.all(omega == omega[0]))
     m = limits.margins
@@ -147,6 +152,10 @@ def trajectory_document(robot: str, trajectory: FourierTrajectory, limits: Limit
     }
     if tool is not None:
         doc["tool_capsule"] = tool.as_dict()
+    if payload is not None:
+        from urident.ident.payload_file import inertial_dict
+
+        doc["payload"] = inertial_dict(payload)
     for key, value in (("optimization", optimization), ("criteria", criteria), ("check", check)):
         if value:
             doc[key] = _plain(value)
@@ -210,6 +219,17 @@ def parse_trajectory_document(data: Any, path: Path | None = None) -> Trajectory
         spec = spec.with_tool(ToolCapsule(r.number(cap, "radius_m", "tool_capsule", positive=True),
                                           r.number(cap, "length_m", "tool_capsule", nonnegative=True)))
 
+    payload = None
+    if data.get("payload") is not None:
+        from urident.ident.payload import Payload
+        from urident.ident.payload_file import inertial_fields
+
+        section = r.mapping(data["payload"], "payload")
+        r.keys(section, {"mass_kg", "com_m", "inertia_kg_m2"}, "payload", required=("mass_kg", "com_m"))
+        mass, com, inertia = inertial_fields(r, section, "payload")
+        spec.check_rated_payload(mass, f"{r.label}: payload.mass_kg")
+        payload = Payload(spec.name, mass, com, inertia)
+
     traj = r.get(data, "trajectory", dict)
     r.keys(traj, _TRAJ_KEYS, "trajectory")
     harmonics = r.integer(traj, "harmonics", "trajectory", minimum=1, maximum=MAX_HARMONICS)
@@ -254,7 +274,8 @@ def parse_trajectory_document(data: Any, path: Path | None = None) -> Trajectory
                 raise r.fail(f"{key}.{k}", "must be a finite number, string or boolean")
         sections[key] = dict(section)
     return TrajectoryFile(path, spec.name, spec, trajectory, margins, limits,
-                          None if urident_version is None else str(urident_version), **sections)
+                          None if urident_version is None else str(urident_version), **sections,
+                          payload=payload)
 
 
 def _finite_if_number(value: Any) -> bool:

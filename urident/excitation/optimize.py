@@ -39,6 +39,7 @@ from urident.excitation.criteria import (CRITERIA, CriterionValues, evaluate_cri
                                          reference_scales)
 from urident.excitation.fourier import FourierBasis, FourierTrajectory, base_frequency, sample_times
 from urident.model.base import BaseParameters, base_parameters
+from urident.model.parameters import tool_body_vector
 from urident.model.regressor import regressor_blocks
 from urident.model.robot import RobotSpec
 
@@ -69,6 +70,7 @@ class ExcitationSettings:
     margins: Margins = field(default_factory=Margins)
     for_payload: bool = False             # criterion: cond of the payload columns (module doc)
     arm_joint_fraction: float = ARM_JOINT_FRACTION   # for_payload: joints 1-3's share of their limits
+    max_velocity_rad_s: float | None = None  # the optimiser's |q̇| bound on every joint besides the margins'
 
     def __post_init__(self) -> None:
         if self.criterion not in CRITERIA:
@@ -82,6 +84,8 @@ class ExcitationSettings:
         if min(self.candidates, self.starts, self.criterion_samples, self.collision_samples,
                self.limit_samples) < 1 or self.iterations < 0:
             raise ValueError("sample counts, candidates and starts must be positive")
+        if self.max_velocity_rad_s is not None and not self.max_velocity_rad_s > 0:
+            raise ValueError(f"max_velocity_rad_s must be positive, not {self.max_velocity_rad_s}")
         if not 0 < self.arm_joint_fraction <= 1:
             raise ValueError(f"arm_joint_fraction must be in (0, 1], not {self.arm_joint_fraction}")
 
@@ -108,7 +112,7 @@ class ExcitationProblem:
     """The objective on fixed grids, batched over coefficient sets ``X`` (B, 6, 2(L−1))."""
 
     def __init__(self, spec: RobotSpec, settings: ExcitationSettings,
-                 base: BaseParameters | None = None):
+                 base: BaseParameters | None = None, payload=None):
         s = settings
         self.spec, self.settings = spec, s
         self.file_limits = Limits.from_robot(spec, s.margins)   # what the trajectory file states
@@ -117,6 +121,8 @@ class ExcitationProblem:
             f = np.where(np.arange(6) < 3, s.arm_joint_fraction, 1.0)
             self.limits = replace(self.file_limits, qd_max=self.file_limits.qd_max * f,
                                   qdd_max=self.file_limits.qdd_max * f)
+        if s.max_velocity_rad_s is not None:
+            self.limits = replace(self.limits, qd_max=np.minimum(self.limits.qd_max, s.max_velocity_rad_s))
         self.q0 = np.array(s.q0, dtype=float)
         if np.any(self.q0 <= self.limits.q_min) or np.any(self.q0 >= self.limits.q_max):
             raise ValueError("q0 is not strictly inside the position limits (with margin)")
@@ -134,6 +140,8 @@ class ExcitationProblem:
         self.basis_limits = FourierBasis.build(grid(s.limit_samples), w, L)
         self.n_free = 2 * (L - 1)
         self.p_nominal = spec.nominal_params
+        # a tool's load: the torque penalty holds with and without it, as the dense check does
+        self.p_payload = None if payload is None else tool_body_vector(payload.body_params(spec))
         if s.for_payload:
             from urident.ident.payload import payload_reference_scales, payload_regressor
 
@@ -168,6 +176,9 @@ class ExcitationProblem:
         log_cond, logdet = gram_criteria(gram, self.scales)
         crit = log_cond if self.settings.criterion == "cond" else -logdet / self.n_columns
         excess = np.maximum(np.abs(tau) / self.limits.tau_max - 1.0, 0.0)
+        if self.p_payload is not None:
+            loaded = tau + (blocks @ self.p_payload).reshape(b, -1, 6)
+            excess = np.maximum(excess, np.abs(loaded) / self.limits.tau_max - 1.0)
         torque_pen = np.sum(excess ** 2, axis=(1, 2)) / tau.shape[1]
         collision_pen = np.zeros(b)
         if rows is None or len(rows):
@@ -240,12 +251,13 @@ class ExcitationProblem:
 
 def optimize_excitation(spec: RobotSpec, settings: ExcitationSettings | None = None,
                         progress: Callable[[str], None] | None = None,
-                        base: BaseParameters | None = None) -> ExcitationResult:
-    """Optimise an excitation trajectory for ``spec``; reproducible for a given ``settings.seed``."""
+                        base: BaseParameters | None = None, payload=None) -> ExcitationResult:
+    """Optimise an excitation trajectory for ``spec``; reproducible for a given ``settings.seed``.
+    ``payload`` (:class:`urident.ident.payload.Payload`): the torque limits hold with it too."""
     settings = ExcitationSettings() if settings is None else settings
     say = progress or (lambda message: None)
     start_time = time.perf_counter()
-    problem = ExcitationProblem(spec, settings, base)
+    problem = ExcitationProblem(spec, settings, base, payload)
     rng = np.random.default_rng(settings.seed)
 
     candidates = problem.shrink_to_collision_free(problem.random_coefficients(rng, settings.candidates))

@@ -41,6 +41,11 @@ TOLERANCES = {"mass_rel": 0.05, "mass_abs": 0.02, "com_m": 0.005, "inertia_rel":
 RANK_TOL = 1e-3
 #: |q| range [rad] below which a wrist joint counts as not moving.
 MIN_WRIST_RANGE_RAD = 0.02
+#: A tare is the same motion as a loaded run: over the selected rows, timed from each selection's
+#: first row, the spans agree within 5 % and every joint within 0.05 rad at every sample (the
+#: real UR10e load/unload pair, aligned rows: 0.025 rad; one 10 ms row off at 1 rad/s: +0.01 rad).
+TARE_POSITION_TOL_RAD = 0.05
+TARE_SPAN_TOL = 0.05
 
 
 class PayloadError(ConfigError):
@@ -199,6 +204,40 @@ def check_wrist_motion(q: np.ndarray, where: str = "logs") -> None:
     if not np.any(span > MIN_WRIST_RANGE_RAD):
         raise PayloadError(f"{where}: the wrist joints 4-6 do not move (ranges "
                            f"{', '.join(f'{s:.3g}' for s in span)} rad): a payload cannot be identified")
+
+
+def check_same_motion(loaded, tare) -> None:
+    """PayloadError (one line) unless every tare run matches one of the loaded runs (module
+    constants ``TARE_*``). ``loaded``, ``tare``: sequences of (label, t (N,), q (N, 6))."""
+    for label, tu, qu in tare:
+        closest = None
+        for other, tl, ql in loaded:
+            problem = _motion_difference(np.asarray(tl, float), np.asarray(ql, float),
+                                         np.asarray(tu, float), np.asarray(qu, float))
+            if problem is None:
+                break
+            closest = closest if closest is not None and closest[0] <= problem[0] else (*problem, other)
+        else:
+            _, text, other = closest
+            raise PayloadError(f"{label}: not the same motion as the loaded log {other}: {text}: a tare "
+                               f"must run the same trajectory over the same rows (--unloaded-rows)")
+
+
+def _motion_difference(tl, ql, tu, qu):
+    """None when (tu, qu) is the motion (tl, ql), else (badness, reason)."""
+    span_l, span_u = tl[-1] - tl[0], tu[-1] - tu[0]
+    if abs(span_u - span_l) > TARE_SPAN_TOL * max(span_l, span_u, 1e-9):
+        return np.inf, (f"its rows span {span_u:.2f} s, the loaded log's {span_l:.2f} s "
+                        f"(tolerance {100 * TARE_SPAN_TOL:g} %)")
+    dl, du = tl - tl[0], tu - tu[0]
+    keep = dl <= du[-1]
+    q_at = np.column_stack([np.interp(dl[keep], du, qu[:, j]) for j in range(6)])
+    diff = np.abs(ql[keep] - q_at)
+    k, j = np.unravel_index(int(np.argmax(diff)), diff.shape)
+    if diff[k, j] <= TARE_POSITION_TOL_RAD:
+        return None
+    return float(diff[k, j]), (f"joint {j + 1} differs by {diff[k, j]:.3f} rad at {dl[keep][k]:.2f} s "
+                               f"into the rows (tolerance {TARE_POSITION_TOL_RAD:g} rad)")
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,7 @@ import yaml
 
 from urident.fileio import write_text_atomic
 from urident.ident.payload import PAYLOAD_FIELDS, Payload, PayloadError
-from urident.yamlio import Fields, load_yaml
+from urident.yamlio import Fields, key_path, load_yaml
 
 FORMAT = "urident-payload"
 VERSION = 1
@@ -42,9 +42,7 @@ def to_dict(p: Payload, fit: dict | None = None) -> dict:
         sigma = {"mass_kg": _nan_none(p.sigma["mass_kg"]),
                  "com_m": [_nan_none(v) for v in p.sigma["com_m"]],
                  "inertia_kg_m2": [[_nan_none(v) for v in row] for row in p.sigma["inertia_kg_m2"]]}
-    out = {"format": FORMAT, "version": VERSION, "robot": p.robot, "method": p.method,
-           "mass_kg": float(p.mass_kg), "com_m": [float(v) for v in p.com_m],
-           "inertia_kg_m2": [[float(v) for v in row] for row in p.inertia_kg_m2],
+    out = {"format": FORMAT, "version": VERSION, "robot": p.robot, "method": p.method, **inertial_dict(p),
            "sigma": sigma, "identifiable": list(p.identifiable), "urscript": p.urscript()}
     if fit:
         out["fit"] = fit
@@ -56,6 +54,28 @@ def to_dict(p: Payload, fit: dict | None = None) -> dict:
 def save_payload(p: Payload, path, overwrite: bool = False, fit: dict | None = None) -> None:
     write_text_atomic(path, yaml.safe_dump(to_dict(p, fit), sort_keys=False, width=120),
                       fsync=False, overwrite=overwrite)
+
+
+def inertial_fields(f: Fields, data: dict, where: str = "") -> tuple[float, np.ndarray, np.ndarray]:
+    """``mass_kg`` (> 0), ``com_m`` (3) and the optional ``inertia_kg_m2`` (3×3, symmetric, ⪰ 0;
+    default zero) of the mapping ``data`` at key path ``where`` (a payload file's top level, a
+    trajectory file's ``payload``)."""
+    mass = f.number(data, "mass_kg", where, positive=True)
+    com = f.array(data, "com_m", where, 3)
+    inertia = (np.zeros((3, 3)) if data.get("inertia_kg_m2") is None
+               else f.array(data, "inertia_kg_m2", where, (3, 3)))
+    if not np.allclose(inertia, inertia.T, atol=1e-12 + 1e-9 * np.abs(inertia).max()):
+        raise f.fail(key_path(where, "inertia_kg_m2"), "must be symmetric")
+    ev = np.linalg.eigvalsh(inertia)
+    if ev.min() < -1e-9 * max(ev.max(), 1e-12):
+        raise f.fail(key_path(where, "inertia_kg_m2"), "must be positive semidefinite (about the centre of mass)")
+    return mass, com, inertia
+
+
+def inertial_dict(p: Payload) -> dict:
+    """The inverse of :func:`inertial_fields`: plain floats."""
+    return {"mass_kg": float(p.mass_kg), "com_m": [float(v) for v in p.com_m],
+            "inertia_kg_m2": [[float(v) for v in row] for row in p.inertia_kg_m2]}
 
 
 def load_payload(path, spec=None) -> Payload:
@@ -70,14 +90,7 @@ def load_payload(path, spec=None) -> Payload:
     robot = f.get(data, "robot", str)
     if spec is not None and robot != spec.name:
         raise f.fail("robot", f"payload for robot {robot!r}, not {spec.name!r}")
-    mass = f.number(data, "mass_kg", positive=True)
-    com = f.array(data, "com_m", "", 3)
-    inertia = np.zeros((3, 3)) if data.get("inertia_kg_m2") is None else f.array(data, "inertia_kg_m2", "", (3, 3))
-    if not np.allclose(inertia, inertia.T, atol=1e-12 + 1e-9 * np.abs(inertia).max()):
-        raise f.fail("inertia_kg_m2", "must be symmetric")
-    ev = np.linalg.eigvalsh(inertia)
-    if ev.min() < -1e-9 * max(ev.max(), 1e-12):
-        raise f.fail("inertia_kg_m2", "must be positive semidefinite (about the centre of mass)")
+    mass, com, inertia = inertial_fields(f, data)
     ident = data.get("identifiable", list(PAYLOAD_FIELDS))
     if not isinstance(ident, list) or any(x not in PAYLOAD_FIELDS for x in ident):
         raise f.fail("identifiable", f"must list names among {', '.join(PAYLOAD_FIELDS)}")

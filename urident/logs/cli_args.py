@@ -148,13 +148,15 @@ def load_log_from_args(
     args: argparse.Namespace,
     robot: str | None = None,
     report: TextIO | None = None,
+    rows: tuple[int, int] | None = None,
 ) -> Recording:
     """``load_log`` with the options of :func:`add_log_arguments`; prints the drop report
-    (to stderr by default) when rows were dropped."""
+    (to stderr by default) when rows were dropped. ``rows`` overrides ``--rows`` (a command's
+    rows for one group of its logs: ``gap --ident-rows``, ``payload --unloaded-rows``)."""
     recording = load_log(
         path,
         robot=robot,
-        rows=getattr(args, "log_rows", None),
+        rows=getattr(args, "log_rows", None) if rows is None else rows,
         drop_bad=getattr(args, "log_drop_bad", False),
         column_map=getattr(args, "log_columns", None),
         format=getattr(args, "log_format", None),

@@ -15,7 +15,7 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from urident.errors import UnknownRobotError, shown
+from urident.errors import ConfigError, UnknownRobotError, shown
 from urident.model.parameters import N_JOINTS, N_PARAMS, standard_from_links  # noqa: F401  (N_PARAMS: re-exported)
 from urident.yamlio import Fields, load_yaml
 
@@ -149,6 +149,13 @@ class RobotSpec:
         a = np.asarray(self.tool_xyz, dtype=float)
         b = a + np.asarray(self.tool_rotation, dtype=float) @ np.array([0.0, 0.0, self.tool.length_m])
         return (Capsule(a, b, float(self.tool.radius_m)),)
+
+    def check_rated_payload(self, mass_kg: float, where: str) -> None:
+        """ConfigError (one line naming ``where``) when ``mass_kg`` exceeds the datasheet's rated
+        payload: a trajectory is never checked, nor run, for a load the arm is not rated for."""
+        if self.payload_kg is not None and mass_kg > self.payload_kg:
+            raise ConfigError(f"{where}: payload {mass_kg:g} kg exceeds the rated payload of "
+                              f"{self.model or self.name} ({self.payload_kg:g} kg, robot file '{self.name}')")
 
     @property
     def joint_names(self) -> tuple[str, ...]:

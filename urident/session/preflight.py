@@ -52,6 +52,20 @@ def check_controller(spec: RobotSpec, version: tuple[int, ...], rate_hz: float,
                               f"but --robot is '{spec.name}' ({spec.model or spec.name})")
 
 
+#: A declared payload heavier than the checked one by more than this [kg] is refused (rounding).
+DECLARED_PAYLOAD_TOLERANCE_KG = 1e-3
+
+
+def check_declared_payload(declared_kg: float | None, checked_kg: float, trajectory: str) -> None:
+    """The payload the controller was told (RTDE target payload) must not be heavier than the one
+    the trajectory's torques were checked with (lighter loads are covered: the check holds with
+    and without its load); ``declared_kg`` None: the controller publishes none."""
+    if declared_kg is not None and declared_kg > checked_kg + DECLARED_PAYLOAD_TOLERANCE_KG:
+        raise SafetyError(f"the controller declares a payload of {declared_kg:g} kg, heavier than the "
+                          f"{checked_kg:g} kg {trajectory} was checked with: nothing was moved (check "
+                          f"it with the mounted load: --payload-mass {declared_kg:g} or --payload FILE)")
+
+
 def check_robot_state(robot_mode: int, safety_mode: int, safety_bits: int) -> None:
     if robot_mode != ROBOT_MODE_RUNNING:
         name = ROBOT_MODE_NAMES.get(robot_mode, str(robot_mode))

@@ -33,8 +33,8 @@ from urident.fileio import write_bytes_atomic
 from urident.model import RobotSpec, load_robot
 from urident.session.config import ExperimentConfig
 from urident.session.monitors import RunMonitor, safety_problem
-from urident.session.preflight import (ApproachPlan, check_controller, check_robot_state,
-                                       plan_approach)
+from urident.session.preflight import (ApproachPlan, check_controller, check_declared_payload,
+                                       check_robot_state, plan_approach)
 from urident.session.rtde_io import ControllerInfo, RobotLink, log_field_names
 
 
@@ -49,6 +49,8 @@ class RunRequest:
     check_only: bool = False
     assume_yes: bool = False
     record_periods: bool = False   # save every control period to LOG.periods.npy
+    payload: object = None         # the load to check the torques with (urident.ident.payload.Payload);
+                                   # None: the one the trajectory file records, if any
 
 
 @dataclass
@@ -70,6 +72,7 @@ class PlannedMotion:
     trajectory_file: object
     t: np.ndarray        # (K,) command times [s]
     q_cmd: np.ndarray    # (K, 6) servo targets, trajectory repeated, then rest
+    payload: object = None   # the load the torque check included (None: the empty flange)
 
 
 def _sha256(path: Path) -> str:
@@ -77,8 +80,9 @@ def _sha256(path: Path) -> str:
 
 
 def plan_motion(spec: RobotSpec, trajectory_path: Path, rate_hz: float, repeat: int,
-                rest_s: float) -> PlannedMotion:
-    """Load the trajectory, check every constraint at ``rate_hz`` and build the servo targets."""
+                rest_s: float, payload=None) -> PlannedMotion:
+    """Load the trajectory, check every constraint at ``rate_hz`` (the torques with ``payload``,
+    else with the load the file records) and build the servo targets."""
     from urident.excitation import check_trajectory, load_trajectory, sample
 
     traj_file = load_trajectory(trajectory_path)
@@ -86,7 +90,10 @@ def plan_motion(spec: RobotSpec, trajectory_path: Path, rate_hz: float, repeat: 
         raise ConfigError(f"{trajectory_path}: trajectory is for robot '{traj_file.robot}', "
                           f"not '{spec.name}'")
     spec = traj_file.checked_spec(spec)  # a trajectory designed for a tool keeps it in every check
-    report = check_trajectory(spec, traj_file.trajectory, rate_hz, traj_file.limits)
+    payload = traj_file.payload if payload is None else payload
+    if payload is not None:
+        spec.check_rated_payload(payload.mass_kg, "payload to check the trajectory with")
+    report = check_trajectory(spec, traj_file.trajectory, rate_hz, traj_file.limits, payload=payload)
     report.raise_if_unsafe(f"{trajectory_path} (checked at {rate_hz:g} Hz)")
     if repeat < 1:
         raise ConfigError(f"--repeat must be at least 1, not {repeat}")
@@ -97,7 +104,7 @@ def plan_motion(spec: RobotSpec, trajectory_path: Path, rate_hz: float, repeat: 
     n_rest = int(round(rest_s * rate_hz))
     parts.append(np.repeat(q[-1:], n_rest, axis=0))
     q_cmd = np.concatenate(parts)
-    return PlannedMotion(spec, traj_file, np.arange(len(q_cmd)) * period, q_cmd)
+    return PlannedMotion(spec, traj_file, np.arange(len(q_cmd)) * period, q_cmd, payload)
 
 
 class Terminated(BaseException):
@@ -221,7 +228,12 @@ def _check_and_run(request: RunRequest, spec: RobotSpec, config: ExperimentConfi
     if spec.generation == "e-series" and not link.in_remote_control():
         raise SafetyError(f"{request.host} is in local control: switch the teach pendant to "
                           f"remote control")
-    motion = plan_motion(spec, request.trajectory, info.rate_hz, request.repeat, config.rest_s)
+    motion = plan_motion(spec, request.trajectory, info.rate_hz, request.repeat, config.rest_s,
+                         request.payload)
+    declared = link.declared_payload()
+    checked_kg = 0.0 if motion.payload is None else float(motion.payload.mass_kg)
+    check_declared_payload(None if declared is None else declared["mass_kg"], checked_kg,
+                           str(request.trajectory))
     approach = plan_approach(spec, link.actual_q(), motion.q_cmd[0],
                              config.approach.max_distance_rad,
                              _clearance_function(motion.spec, motion.trajectory_file.limits))
@@ -229,6 +241,9 @@ def _check_and_run(request: RunRequest, spec: RobotSpec, config: ExperimentConfi
     say(f"{spec.description} at {request.host}: controller {info.version_text}, "
         f"{info.rate_hz:g} Hz; trajectory {request.trajectory} passed every check at "
         f"{info.rate_hz:g} Hz ({len(motion.q_cmd)} servo periods, {motion.t[-1]:.1f} s)")
+    say(f"payload: torques checked with {checked_kg:g} kg and without; the controller declares "
+        + ("none (it publishes no payload before software 3.11 / 5.5)" if declared is None
+           else f"{declared['mass_kg']:g} kg"))
     say(f"approach: {approach.max_joint_distance_rad:.3f} rad on joint {approach.joint + 1} at "
         f"{config.approach.speed_rad_s} rad/s"
         + (f", collision margin {approach.min_margin_m:.3f} m" if approach.min_margin_m is not None else ""))
@@ -438,7 +453,8 @@ def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion:
                  "periods_over_tolerance": over,
                  "max_tracking_error_rad": monitor.max_tracking_error,
                  "servo_timestamps_s": servo_timestamps, "stop_problems": problems,
-                 "late_cycles": monitor.late.late, "declared_payload": link.declared_payload()}
+                 "late_cycles": monitor.late.late, "declared_payload": link.declared_payload(),
+                 "checked_payload_kg": 0.0 if motion.payload is None else float(motion.payload.mass_kg)}
         stats = recorder.stop(status, abort_reason, extra)
         if live is not None:
             live.close(abort_reason)
