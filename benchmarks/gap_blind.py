@@ -91,7 +91,7 @@ where every effect that matters is named, the shrink error per named effect (its
 predicted vs actual shrink) and per effect class. Printed for the single-effect mix too.
 
 Usage: ``python benchmarks/gap_blind.py [--scenarios 40] [--seed 1] [--robot ur10e] [--rate 200] [--duration 60] [--ident-duration S]
-[--effect-free | --multi] [--other-duration S] [--min-shrink PCT] [--first I] [--rows-out FILE] [--from-rows FILE …]``. ``--effect-free`` makes every scenario effect-free (a
+[--effect-free | --multi] [--other-duration S] [--min-shrink PCT] [--first I] [--only EFFECT] [--rows-out FILE] [--from-rows FILE …]``. ``--effect-free`` makes every scenario effect-free (a
 false-alarm scan); ``--min-shrink`` sets the diagnosis' materiality floor (to calibrate it). The
 last line printed is one JSON object.
 """
@@ -679,6 +679,9 @@ def main(argv=None) -> int:
                     help="also write every scenario's row, one JSON object a line")
     ap.add_argument("--from-rows", nargs="+", metavar="FILE", default=None,
                     help="no simulation: summarise the rows written by earlier --rows-out runs")
+    ap.add_argument("--only", metavar="EFFECT", choices=EFFECT_NAMES, default=None,
+                    help="run only the drawn scenarios whose truth contains this effect (the others are "
+                         "skipped, not redrawn: the indices stay those of the full run)")
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args(argv)
 
@@ -695,6 +698,8 @@ def main(argv=None) -> int:
     for i in range(args.first, args.first + args.scenarios) if not args.from_rows else ():
         kinds = ("none",) if args.effect_free else MULTI_KINDS if args.multi else None
         sc = draw_scenario(i, args.seed, kinds) if kinds else draw_scenario(i, args.seed)
+        if args.only and args.only not in [t["effect"] for t in sc.truth]:
+            continue
         row = run_scenario(spec, sc, args.rate, args.duration, config, args.other_duration, args.ident_duration)
         rows.append(row)
         if sink:

@@ -48,11 +48,13 @@ from urident.gap.data import GapSet
 from urident.gap.residual import SetContext, make_context
 
 
-def extrapolated_shrink_pct(remaining_rms, correction_rms) -> np.ndarray:
-    """100·(1 − U/√(U² + C²)) per joint (module doc); 0 where there is no correction."""
+def extrapolated_shrink_pct(remaining_rms, correction_rms, cross=None) -> np.ndarray:
+    """100·(1 − U/√(U² + C² + 2X)) per joint (module doc), X the mean product of the correction
+    and what it leaves where that is known (a delay's form misfit), else 0; 0 with no correction."""
     u = np.asarray(remaining_rms, float)
     c = np.asarray(correction_rms, float)
-    total = np.sqrt(u ** 2 + c ** 2)
+    x = np.zeros_like(c) if cross is None else np.asarray(cross, float)
+    total = np.sqrt(np.maximum(u ** 2 + c ** 2 + 2 * x, 0.0))
     return np.where(total > 0, 100.0 * (1.0 - u / np.where(total > 0, total, 1.0)), 0.0)
 
 
@@ -63,16 +65,101 @@ def correction_rms(fit, ctx: SetContext) -> np.ndarray:
     return np.sqrt(np.mean(fit.change(ctx) ** 2, axis=0))
 
 
-def remaining_rms(fit, c_valid, c_other) -> np.ndarray:
-    """(6,) what ``fit`` is expected to leave on the other run: white noise plus the validation
-    run's structured leftover scaled with the correction (module doc)."""
+def _shifted(ctx: SetContext, j: int, d: float) -> np.ndarray:
+    """(N,) τ̂_j(t − d) − τ̂_j(t) per segment (0 where t − d falls before the segment's start)."""
+    from urident.gap.residual import _segment_slices
+
+    out = np.zeros(ctx.n)
+    for sl in _segment_slices(ctx.data.prepared.segment):
+        ts, th = ctx.t[sl], ctx.tau_hat[sl, j]
+        out[sl] = np.where(ts - d >= ts[0], np.interp(ts - d, ts, th) - th, 0.0)
+    return out
+
+
+def delay_behind(beta: float, ctx: SetContext, j: int, iterations: int = 4) -> float:
+    """The delay d [s] whose exact shift of τ̂_j, fitted on ``ctx`` by the column dτ̂_j/dt, gives
+    the fitted coefficient ``beta``: the low-passed column is attenuated at the sharp Coulomb
+    steps of the reversals, so the fitted −β over-states d there (by ~20 % in the unit test)."""
+    x = ctx.dtau[:, j]
+    xx = float(x @ x)
+    d = -beta
+    if xx <= 0 or d == 0:
+        return d
+    for _ in range(iterations):
+        k = -float(_shifted(ctx, j, d) @ x) / (d * xx)    # column coefficient per second of delay
+        if not k > 0:
+            return -beta
+        d = -beta / k
+    return d
+
+
+def delay_form_misfit(fit, ctx: SetContext) -> np.ndarray:
+    """(N, 6) what ``fit``'s current_delay columns leave on ``ctx``: the model torque shifted by
+    the delay behind them (:func:`delay_behind`), τ̂(t − d) − τ̂(t), minus their correction
+    β·dτ̂/dt (the Coulomb step at a reversal, sharper on faster motion); 0 on other joints."""
+    out = np.zeros((ctx.n, 6))
+    for c, b in fit.coefficients().items():
+        if c.effect != "current_delay":
+            continue
+        j, beta = c.joint, float(b[0])
+        fitted_on = fit.scorer.ident if c in fit.ident else fit.scorer.valid
+        out[:, j] = _shifted(ctx, j, delay_behind(beta, fitted_on, j)) - beta * ctx.dtau[:, j]
+    return out
+
+
+def change_share(fit, ctx: SetContext, keep) -> np.ndarray:
+    """(N, 6) the share of ``fit.change(ctx)`` of the candidates ``keep(candidate)`` selects: their
+    columns and, in identification mode, their share of the base parameters' refit."""
+    out = np.zeros((ctx.n, 6))
+    for c, b in fit.coefficients().items():
+        if keep(c):
+            out += c.features(ctx) @ b
+            if c in fit.ident:
+                out -= ctx.design_product(fit.g[c] @ b)
+    return out
+
+
+def _own_other_than_delay(j: int):
+    return lambda c: c.effect != "current_delay" and (c.joint is None or c.joint == j)
+
+
+def _rms(x: np.ndarray) -> np.ndarray:
+    return np.sqrt(np.mean(x ** 2, axis=0))
+
+
+def rest_ratio(fit, valid: SetContext, other: SetContext) -> np.ndarray:
+    """(6,) how the structured leftover not explained by a delay's form misfit scales on the other
+    run: with the correction of the joint's own findings other than delays (a whole-arm one
+    counts on every joint), RMS on the other run over RMS on the validation run; 1 (carried over
+    as it is) where the joint has none: the slow validation run barely excites a delay, so most of
+    its leftover there is the baseline's own misfit, not the delay's, and another joint's refit
+    collateral is no effect of this joint whose imperfect form would grow."""
+    out = np.ones(6)
+    for j in range(6):
+        keep = _own_other_than_delay(j)
+        if not any(keep(c) for c in fit.coefficients()):
+            continue
+        cv, co = (_rms(change_share(fit, ctx, keep)[:, j]) for ctx in (valid, other))
+        if cv > 0:
+            out[j] = co / cv
+    return out
+
+
+def remaining_rms(fit, c_valid, c_other, misfit_valid=None, misfit_other=None, ratio=None) -> np.ndarray:
+    """(6,) what ``fit`` is expected to leave on the other run: white noise, the form misfit the
+    other run's motion gives a delay's column (``misfit_other``, RMS; :func:`delay_form_misfit`),
+    and the rest of the validation run's structured leftover (less ``misfit_valid``) scaled with
+    the correction, ``c_other / c_valid`` or ``ratio`` (:func:`rest_ratio`) (module doc)."""
     from urident.gap.significance import noise_sigma
 
     u = np.sqrt(np.mean(fit.residual ** 2, axis=0))
     sigma = np.minimum(noise_sigma(fit.residual), u)
-    structured2 = u ** 2 - sigma ** 2
-    ratio = np.where(c_valid > 0, c_other / np.where(c_valid > 0, c_valid, 1.0), 1.0)
-    return np.sqrt(sigma ** 2 + structured2 * ratio ** 2)
+    m_v = np.zeros(6) if misfit_valid is None else np.asarray(misfit_valid, float)
+    m_o = np.zeros(6) if misfit_other is None else np.asarray(misfit_other, float)
+    structured2 = np.maximum(u ** 2 - sigma ** 2 - m_v ** 2, 0.0)
+    if ratio is None:
+        ratio = np.where(c_valid > 0, c_other / np.where(c_valid > 0, c_valid, 1.0), 1.0)
+    return np.sqrt(sigma ** 2 + structured2 * ratio ** 2 + m_o ** 2)
 
 
 def predict_shrink(res, spec, other: GapSet | SetContext, fit=None, valid: SetContext | None = None) -> np.ndarray:
@@ -82,6 +169,9 @@ def predict_shrink(res, spec, other: GapSet | SetContext, fit=None, valid: SetCo
     fit = res.fit if fit is None else fit
     valid = res.valid if valid is None else valid
     ctx = other if isinstance(other, SetContext) else make_context(spec, res.model, other)
-    c_other = correction_rms(fit, ctx)
-    c_valid = np.sqrt(np.mean((valid.residual - fit.residual) ** 2, axis=0))
-    return extrapolated_shrink_pct(remaining_rms(fit, c_valid, c_other), c_other)
+    change_o = fit.change(ctx) if (list(fit.ident) or list(fit.cv)) else np.zeros((ctx.n, 6))
+    change_v = valid.residual - fit.residual
+    m_v, m_o = delay_form_misfit(fit, valid), delay_form_misfit(fit, ctx)
+    ratio = rest_ratio(fit, valid, ctx)
+    u = remaining_rms(fit, _rms(change_v), _rms(change_o), _rms(m_v), _rms(m_o), ratio)
+    return extrapolated_shrink_pct(u, _rms(change_o), np.mean(m_o * change_o, axis=0))
