@@ -8,15 +8,24 @@ effects, fitted as the diagnosis fitted them, are applied to the other run's *mo
 angles, velocities, accelerations, the baseline's torque on them, time since the run's start,
 logged temperatures; never its measured current), giving the correction C_j (RMS on joint j) that
 the findings make there. What the findings leave on the validation run, U_j, splits into white
-noise σ_j (:func:`urident.gap.significance.noise_sigma`, the same on any run of that arm) and a
-structured part S_j² = U_j² − σ_j² (the misfit the findings leave, which an effect's imperfect
-form leaves in proportion to the effect): on the other run U'_j² = σ_j² + S_j²·(C'_j/C_j)², C_j the
-correction's RMS on the validation run. With the correction uncorrelated with what is left:
+noise σ_j (:func:`urident.gap.significance.noise_sigma`, the same on any run of that arm), the
+form misfit M_j of a delay finding on that joint (below) and a structured rest R_j² = U_j² − σ_j² − M_j²
+(the misfit the findings leave, which an effect's imperfect form leaves in proportion to the
+effect). On the other run U'_j² = σ_j² + R_j²·ρ_j² + M'_j², ρ_j the RMS ratio (other / validation)
+of the correction made by the joint's own findings other than a delay (1 where it has none: the
+rest is then the baseline's own misfit, carried over as it is), and
 
-    predicted shrink_j = 100·(1 − U'_j / √(U'_j² + C'_j²))
+    predicted shrink_j = 100·(1 − U'_j / √(U'_j² + C'_j² + 2·X'_j))
 
-(with no noise this is the validation shrink; with a correction that fits, S ≈ 0, it is what the
-correction does against the noise.)
+X'_j the mean product of the correction and the form misfit M' (0 without a delay: the correction
+is taken as uncorrelated with what is left). With no noise this is the validation shrink; with a
+correction that fits, R ≈ M ≈ 0, it is what the correction does against the noise.
+
+A delay's column −d·dτ̂/dt is the first-order, low-passed form of the shifted torque
+τ̂(t − d) − τ̂(t); it cannot follow the Coulomb step at a velocity reversal, which is sharper on a
+faster run, so there its misfit grows faster than its correction (:func:`delay_form_misfit`
+computes it on the run's motion, with the delay :func:`delay_behind` the fitted coefficient, whose
+column over-states the delay by the same attenuation).
 
 Per effect class, the quantity carried to the other run (the columns of
 :mod:`urident.gap.candidates` evaluated there, coefficients unchanged):
@@ -28,7 +37,8 @@ thermal_drift          the run's warm-up: 1 − exp(−t/τ_w) over its own dura
                        amplitude), minutes elapsed (time variant), or its logged temperature
                        history (temperature variants), times q̇ and sign(q̇)
 position_ripple        the angles it visits: sin/cos(k·q) (× sign(q̇) for friction ripple)
-current_delay          how fast its torque changes, dτ̂/dt
+current_delay          how fast its torque changes, dτ̂/dt, and the model torque shifted by
+                       the delay behind the fit, τ̂(t − d) − τ̂(t): the column's misfit there
 torque_constant_error  its torque τ̂
 current_offset         nothing (a constant)
 payload_error          its gravity and inertial load of the payload (the regressor on its motion)
