@@ -718,6 +718,10 @@ def main(argv=None) -> int:
             print("      ", json.dumps(row["entries"]))
     if sink:
         sink.close()
+    if not rows and args.only:
+        print(f"gap_blind.py: error: --only {args.only}: none of the {args.scenarios} scenarios drawn "
+              "holds it", file=sys.stderr)
+        return 2
     summary = summarise(rows)
     cfg = config
     print(f"materiality: shrink >= {cfg.min_shrink_pct:g} % of the joint's RMS; CV-mode findings also "

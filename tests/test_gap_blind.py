@@ -126,3 +126,10 @@ def test_two_effects_at_once_are_scored_per_finding(gb, robot):
     assert m["mean_shrink_error_named_pts"] == pytest.approx(sum(errs) / 2)
     assert all(e == pytest.approx(abs(s["predicted_shrink_pct"] - s["actual_shrink_pct"]))
                for e, s in zip(errs, row["shrink"]))
+
+
+def test_only_skips_the_scenarios_without_the_effect(gb, capsys):
+    # scenario 0 of the multi mix is effect-free: nothing to run, a one-line error, exit 2
+    assert gb.main(["--multi", "--scenarios", "1", "--only", "current_delay"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--only current_delay" in err
