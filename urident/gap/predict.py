@@ -68,13 +68,6 @@ def extrapolated_shrink_pct(remaining_rms, correction_rms, cross=None) -> np.nda
     return np.where(total > 0, 100.0 * (1.0 - u / np.where(total > 0, total, 1.0)), 0.0)
 
 
-def correction_rms(fit, ctx: SetContext) -> np.ndarray:
-    """(6,) RMS of ``fit``'s correction of the prediction on ``ctx`` [N·m] (motion only)."""
-    if not (list(fit.ident) or list(fit.cv)):
-        return np.zeros(6)
-    return np.sqrt(np.mean(fit.change(ctx) ** 2, axis=0))
-
-
 def _shifted(ctx: SetContext, j: int, d: float) -> np.ndarray:
     """(N,) τ̂_j(t − d) − τ̂_j(t) per segment (0 where t − d falls before the segment's start)."""
     from urident.gap.residual import _segment_slices
@@ -89,7 +82,7 @@ def _shifted(ctx: SetContext, j: int, d: float) -> np.ndarray:
 def delay_behind(beta: float, ctx: SetContext, j: int, iterations: int = 4) -> float:
     """The delay d [s] whose exact shift of τ̂_j, fitted on ``ctx`` by the column dτ̂_j/dt, gives
     the fitted coefficient ``beta``: the low-passed column is attenuated at the sharp Coulomb
-    steps of the reversals, so the fitted −β over-states d there (by ~20 % in the unit test)."""
+    steps of the reversals, so the fitted −β over-states d (11.8 ms for 10 ms in the unit test)."""
     x = ctx.dtau[:, j]
     xx = float(x @ x)
     d = -beta
@@ -117,20 +110,14 @@ def delay_form_misfit(fit, ctx: SetContext) -> np.ndarray:
     return out
 
 
-def change_share(fit, ctx: SetContext, keep) -> np.ndarray:
-    """(N, 6) the share of ``fit.change(ctx)`` of the candidates ``keep(candidate)`` selects: their
-    columns and, in identification mode, their share of the base parameters' refit."""
-    out = np.zeros((ctx.n, 6))
-    for c, b in fit.coefficients().items():
-        if keep(c):
-            out += c.features(ctx) @ b
-            if c in fit.ident:
-                out -= ctx.design_product(fit.g[c] @ b)
+def change_share(fit, ctx: SetContext, c) -> np.ndarray:
+    """(N, 6) candidate ``c``'s share of ``fit.change(ctx)``: its columns and, in identification
+    mode, its share of the base parameters' refit."""
+    b = fit.coefficients()[c]
+    out = c.features(ctx) @ b
+    if c in fit.ident:
+        out = out - ctx.design_product(fit.g[c] @ b)
     return out
-
-
-def _own_other_than_delay(j: int):
-    return lambda c: c.effect != "current_delay" and (c.joint is None or c.joint == j)
 
 
 def _rms(x: np.ndarray) -> np.ndarray:
@@ -144,12 +131,14 @@ def rest_ratio(fit, valid: SetContext, other: SetContext) -> np.ndarray:
     as it is) where the joint has none: the slow validation run barely excites a delay, so most of
     its leftover there is the baseline's own misfit, not the delay's, and another joint's refit
     collateral is no effect of this joint whose imperfect form would grow."""
+    cands = [c for c in fit.coefficients() if c.effect != "current_delay"]
+    shares = {c: [change_share(fit, ctx, c) for ctx in (valid, other)] for c in cands}
     out = np.ones(6)
     for j in range(6):
-        keep = _own_other_than_delay(j)
-        if not any(keep(c) for c in fit.coefficients()):
+        own = [shares[c] for c in cands if c.joint is None or c.joint == j]
+        if not own:
             continue
-        cv, co = (_rms(change_share(fit, ctx, keep)[:, j]) for ctx in (valid, other))
+        cv, co = (_rms(sum(s[k] for s in own)[:, j]) for k in (0, 1))
         if cv > 0:
             out[j] = co / cv
     return out
