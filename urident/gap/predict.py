@@ -70,10 +70,10 @@ def extrapolated_shrink_pct(remaining_rms, correction_rms, cross=None) -> np.nda
 
 def _shifted(ctx: SetContext, j: int, d: float) -> np.ndarray:
     """(N,) τ̂_j(t − d) − τ̂_j(t) per segment (0 where t − d falls before the segment's start)."""
-    from urident.gap.residual import _segment_slices
+    from urident.gap.residual import segment_slices
 
     out = np.zeros(ctx.n)
-    for sl in _segment_slices(ctx.data.prepared.segment):
+    for sl in segment_slices(ctx.data.prepared.segment):
         ts, th = ctx.t[sl], ctx.tau_hat[sl, j]
         out[sl] = np.where(ts - d >= ts[0], np.interp(ts - d, ts, th) - th, 0.0)
     return out

@@ -28,7 +28,8 @@ def fit_baseline(spec, ident: GapSet, friction_eps: float = 0.01):
     return identify(spec, ident.prepared, "ols", ModelConfig(friction_eps=friction_eps))
 
 
-def _segment_slices(segment: np.ndarray):
+def segment_slices(segment: np.ndarray):
+    """One slice per run of equal ``segment`` labels (the pieces a log is filtered in)."""
     edges = np.flatnonzero(np.diff(segment) != 0) + 1
     bounds = np.r_[0, edges, len(segment)]
     return [slice(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])]
@@ -40,7 +41,7 @@ def smooth_derivative(x: np.ndarray, t: np.ndarray, segment: np.ndarray, order: 
     from urident.ident.preprocess import zero_phase_lowpass
 
     out = np.zeros_like(x)
-    for sl in _segment_slices(segment):
+    for sl in segment_slices(segment):
         ts, xs = t[sl], x[sl]
         if len(ts) < 20:
             continue
