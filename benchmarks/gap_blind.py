@@ -91,7 +91,7 @@ where every effect that matters is named, the shrink error per named effect (its
 predicted vs actual shrink) and per effect class. Printed for the single-effect mix too.
 
 Usage: ``python benchmarks/gap_blind.py [--scenarios 40] [--seed 1] [--robot ur10e] [--rate 200] [--duration 60] [--ident-duration S]
-[--effect-free | --multi] [--other-duration S] [--min-shrink PCT] [--first I] [--rows-out FILE] [--from-rows FILE …]
+[--effect-free | --multi] [--other-duration S] [--min-shrink PCT] [--first I] [--only EFFECT] [--rows-out FILE] [--from-rows FILE …]
 [--pair-timing]``. ``--effect-free`` makes every scenario effect-free (a
 false-alarm scan); ``--min-shrink`` sets the diagnosis' materiality floor (to calibrate it).
 ``--pair-timing`` is the speed figure of issue 21 (a UR5e 40 s + 20 s pair at 500 Hz, 4 scenarios
@@ -719,6 +719,9 @@ def main(argv=None) -> int:
                     help="the diagnosis time of a UR5e 40 s identification + 20 s validation pair at 500 Hz "
                          "(issue 21's speed target, < 10 s): sets --robot ur5e --rate 500 "
                          "--ident-duration 40 --duration 20 and the --multi mix")
+    ap.add_argument("--only", metavar="EFFECT", choices=EFFECT_NAMES, default=None,
+                    help="run only the drawn scenarios whose truth contains this effect (the others are "
+                         "skipped, not redrawn: the indices stay those of the full run)")
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args(argv)
     if args.pair_timing:
@@ -740,6 +743,8 @@ def main(argv=None) -> int:
     for i in range(args.first, args.first + args.scenarios) if not args.from_rows else ():
         kinds = ("none",) if args.effect_free else MULTI_KINDS if args.multi else None
         sc = draw_scenario(i, args.seed, kinds) if kinds else draw_scenario(i, args.seed)
+        if args.only and args.only not in [t["effect"] for t in sc.truth]:
+            continue
         row = run_scenario(spec, sc, args.rate, args.duration, config, args.other_duration, args.ident_duration)
         rows.append(row)
         if sink:
@@ -758,6 +763,10 @@ def main(argv=None) -> int:
             print("      ", json.dumps(row["entries"]))
     if sink:
         sink.close()
+    if not rows and args.only:
+        print(f"gap_blind.py: error: --only {args.only}: none of the {args.scenarios} scenarios drawn "
+              "holds it", file=sys.stderr)
+        return 2
     summary = summarise(rows)
     cfg = config
     print(f"materiality: shrink >= {cfg.min_shrink_pct:g} % of the joint's RMS; CV-mode findings also "

@@ -142,3 +142,10 @@ def test_timing_is_summarised_per_scenario_and_without_each_process_first(gb, ro
     assert t["mean_wall_s"] == pytest.approx(2.0) and t["max_wall_s"] == 3.0
     assert t["mean_cpu_warm_s"] == pytest.approx(1.0) and t["mean_wall_warm_s"] == pytest.approx(1.5)
     assert gb.timing_summary([])["mean_wall_s"] is None
+
+
+def test_only_skips_the_scenarios_without_the_effect(gb, capsys):
+    # scenario 0 of the multi mix is effect-free: nothing to run, a one-line error, exit 2
+    assert gb.main(["--multi", "--scenarios", "1", "--only", "current_delay"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--only current_delay" in err

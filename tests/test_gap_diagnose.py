@@ -340,3 +340,16 @@ def test_a_payload_declared_to_the_controller_between_the_runs_is_seen_in_its_ta
     change = same.as_dict()["where"]["controller_model"]["change_between_runs"]
     assert change["changed"] is False
     assert max(change["share_of_largest_target"]) < 0.01
+
+
+def test_an_identification_finding_must_not_point_along_a_larger_misfit():
+    from urident.gap.significance import aligned
+
+    rng = np.random.default_rng(0)
+    c = 0.05 * np.sin(np.linspace(0, 20, 4000))            # the candidate's correction
+    noise = rng.normal(0, 0.2, c.size)
+    for held, ok in ((1.0, True), (3.5, False)):            # the residual holds held·c along c
+        r = held * c + noise
+        removed = float(np.sum(r ** 2) - np.sum((r - c) ** 2))
+        assert aligned(removed, c.size, float(np.sqrt(np.mean(c ** 2))), 2.0) is ok, held
+    assert aligned(removed, c.size, float(np.sqrt(np.mean(c ** 2))), 0.0)   # 0: no limit

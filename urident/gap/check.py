@@ -23,7 +23,7 @@ import numpy as np
 from urident.gap.bootstrap import block_bootstrap_means, default_block_length, interval
 from urident.gap.candidates import Candidate
 from urident.gap.data import build_set
-from urident.gap.predict import extrapolated_shrink_pct, remaining_rms
+from urident.gap.predict import delay_form_misfit, extrapolated_shrink_pct, remaining_rms, rest_ratio
 from urident.gap.residual import make_context
 
 
@@ -90,6 +90,9 @@ def check_findings(res, check_recordings: Sequence, spec, *, drive_gains=None, p
     r_all = r0 - res.fit.change(ctx) if chosen else r0
     block_c = default_block_length(ctx.n, data.sample_rate * cfg.block_s)
     block_v = default_block_length(res.valid.n, res.valid.data.sample_rate * cfg.block_s)
+    # a delay's form misfit on either run and how the rest of the leftover scales (urident.gap.predict)
+    m_valid, m_check = delay_form_misfit(res.fit, res.valid), delay_form_misfit(res.fit, ctx)
+    ratio = rest_ratio(res.fit, res.valid, ctx) if chosen else np.ones(6)
     rows = []
     for k, f in enumerate(res.findings):
         c = finding_candidate(res, k)
@@ -101,8 +104,10 @@ def check_findings(res, check_recordings: Sequence, spec, *, drive_gains=None, p
         s, s_ci = shrink_with_interval(r_oth[:, j], r_all[:, j], block_c, cfg.n_boot, cfg.seed, cfg.level)
         # the finding's own correction on the check logs' motion, against what the findings leave
         c_valid = _rms(others.residual - res.fit.residual)
-        c_check = _rms(r_oth - r_all)
-        e = extrapolated_shrink_pct(remaining_rms(res.fit, c_valid, c_check), c_check)[j]
+        own_check = r_oth - r_all
+        c_check = _rms(own_check)
+        u = remaining_rms(res.fit, c_valid, c_check, _rms(m_valid), _rms(m_check), ratio)
+        e = extrapolated_shrink_pct(u, c_check, np.mean(m_check * own_check, axis=0))[j]
         rows.append(CheckRow(k, f.effect, f.joint, p, p_ci, s, s_ci, bool(s_ci[0] > 0), float(e)))
     return CheckResult(ctx.n, rows, _rms(r0), _rms(r_all))
 

@@ -52,7 +52,8 @@ def baseline_design(spec, data: GapSet, friction_eps: float = 0.01) -> list | No
     return parts
 
 
-def _segment_slices(segment: np.ndarray):
+def segment_slices(segment: np.ndarray):
+    """One slice per run of equal ``segment`` labels (the pieces a log is filtered in)."""
     edges = np.flatnonzero(np.diff(segment) != 0) + 1
     bounds = np.r_[0, edges, len(segment)]
     return [slice(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])]
@@ -64,7 +65,7 @@ def smooth_derivative(x: np.ndarray, t: np.ndarray, segment: np.ndarray, order: 
     from urident.ident.preprocess import zero_phase_lowpass
 
     out = np.zeros_like(x)
-    for sl in _segment_slices(segment):
+    for sl in segment_slices(segment):
         ts, xs = t[sl], x[sl]
         if len(ts) < 20:
             continue

@@ -4,8 +4,10 @@ Per-sample improvement d_k = Σ_j (r_kj² − r'_kj²) on held-out validation da
 candidate's own joint; the means get block bootstrap intervals (blocks of ~1 s). A candidate is
 *significant* when the own joint's lower bound is > 0 and the summed improvement is positive
 (``test="own"``; ``"total"``: the summed improvement's lower bound > 0), it shrinks its joint's
-RMS by at least ``min_shrink_pct``, its coefficients are physically plausible (:func:`plausible`)
-and, in CV mode, its correction is material in absolute terms (:func:`material_cv`). A CV-mode
+RMS by at least ``min_shrink_pct``, its coefficients are physically plausible (:func:`plausible`),
+in identification mode its joint holds no more than ``ident_max_projection`` times its correction
+along it (:func:`aligned`) and, in CV mode, its correction is material in absolute terms
+(:func:`material_cv`). A CV-mode
 candidate must also beat its identification-mode twin (:func:`admissible`).
 """
 
@@ -68,6 +70,9 @@ def score_all(scorer: Scorer, current: Fit, pool: list[Candidate], block: int,
             held_out = lo > 0
         s.significant = bool(held_out and s.shrink_pct >= config.min_shrink_pct
                              and plausible(c, f.coefficients()[c])
+                             and (c.mode != "ident" or aligned(n * float(rms0[joint] ** 2 - rms1[joint] ** 2), n,
+                                                               float(change_rms[i][joint]),
+                                                               config.ident_max_projection))
                              and (c.mode != "cv" or _material(float(change_rms[i][joint]), sigma[joint],
                                                               config.cv_min_noise_ratio)))
         out.append(s)
@@ -111,6 +116,16 @@ def material_cv(change_j: np.ndarray, sigma_j: float, ratio: float) -> bool:
     catalogue. Identification-mode candidates are fitted on other data and need no floor.
     The default 0.5 σ sits above what effect-free scenarios pass (docs/gap-calibration.md)."""
     return _material(float(np.sqrt(np.mean(np.asarray(change_j, float) ** 2))), sigma_j, ratio)
+
+
+def aligned(removed: float, n: int, crms: float, max_projection: float) -> bool:
+    """An identification-mode candidate's coefficients come from other data: when it is the
+    effect, the validation residual holds about its correction c along it, ⟨r, c⟩/⟨c, c⟩ ≈ 1;
+    far more means the correction only points along a larger misfit of the baseline (its refit
+    of the base parameters nudged towards what the validation run prefers). From the removed
+    energy Σr² − Σ(r − c)² = 2⟨r, c⟩ − ⟨c, c⟩ of the candidate's joint (docs/gap-calibration.md)."""
+    cc = n * crms ** 2
+    return max_projection <= 0 or cc <= 0 or (removed / cc + 1.0) / 2.0 <= max_projection
 
 
 def _material(crms: float, sigma_j: float, ratio: float) -> bool:
