@@ -61,6 +61,18 @@ def main() -> None:
                         *([] if args.max_effects is None else ["--max-effects", str(args.max_effects)])]) == 0
         wall = time.perf_counter() - t0
         doc = json.loads((tmp / "gap.json").read_text())
+        # the armature's share of the measured torque per joint (the truth's rotor inertia × q̈ on
+        # the states gap uses), beside the white-noise torque of the baseline residual
+        from urident.gap.data import build_set
+        from urident.gap.significance import noise_sigma
+        from urident.logs import load_log
+        from urident.sim.models import load_sim_model
+
+        prepared = build_set([load_log(log)], spec).prepared
+        residual = prepared.tau - load_sim_model(model, spec).predict(prepared.q, prepared.qd, prepared.qdd)
+        arm_nm = truth["armature"] * np.sqrt(np.mean(prepared.qdd ** 2, axis=0))
+        arm_share = 100 * arm_nm / np.sqrt(np.mean(prepared.tau ** 2, axis=0))
+        noise = noise_sigma(residual)
     before = np.array(doc["baseline"]["rms_nm"])
     after = np.array(doc["sim_corrected"]["rms_nm"])
     predicted = np.array(doc["sim_predicted"]["rms_nm"])
@@ -83,6 +95,11 @@ def main() -> None:
         print(f"{f['effect']:14s} {f['joint']:5d}  {str(f['expressible']):11s}  "
               f"{'' if value is None else f'{value:11.4g}'}  {'' if true is None else f'{true:6.3g}'}  "
               f"{'' if err is None else f'{err:+5.1f} %'}{extra}")
+    print("armature torque RMS [N·m]       " + " ".join(f"{v:7.3f}" for v in arm_nm))
+    print("armature share of torque [%]    " + " ".join(f"{v:7.2f}" for v in arm_share))
+    print("white-noise torque [N·m]        " + " ".join(f"{v:7.3f}" for v in noise))
+    for d in doc.get("not_identified", []):
+        print(f"not identified: {d['effect']} joint {d['joint']} below about {d['limit']:.3g} {d['unit']}")
     cut = 100 * (1 - after / before)
     pred = 100 * (1 - predicted / before)
     print("validation RMS [N·m], baseline  " + " ".join(f"{v:7.3f}" for v in before))
@@ -90,8 +107,9 @@ def main() -> None:
     print("cut measured by MuJoCo [%]      " + " ".join(f"{v:7.1f}" for v in cut))
     print("cut predicted by the report [%] " + " ".join(f"{v:7.1f}" for v in pred))
     print(f"gap --sim wall time {wall:.1f} s")
-    print(json.dumps({"robot": spec.name, "findings": rows, "baseline_rms_nm": before.tolist(),
-                      "corrected_rms_nm": after.tolist(), "cut_pct": cut.round(2).tolist(),
+    print(json.dumps({"robot": spec.name, "trajectory": traj.name, "seed": args.seed, "findings": rows, "baseline_rms_nm": before.tolist(),
+                      "corrected_rms_nm": after.tolist(), "armature_share_pct": arm_share.round(3).tolist(),
+                      "noise_nm": noise.round(4).tolist(), "not_identified": doc.get("not_identified", []), "cut_pct": cut.round(2).tolist(),
                       "predicted_cut_pct": pred.round(2).tolist(),
                       "max_disagreement_points": float(np.max(np.abs(cut - pred))), "wall_s": round(wall, 1)}))
 

@@ -135,13 +135,11 @@ def test_write_sim_changes_exactly_what_it_says(ur5_models, tmp_path):
 def test_gap_sim_names_the_missing_drive_terms_and_mujoco_measures_the_written_model(ur5_models, tmp_path, capsys):
     from urident.ident import load_params
 
-    # the truth: a consistent estimate exported with its drive terms; the baseline: the same
-    # model with armature, damping and frictionloss removed
+    # the baseline: a consistent estimate exported without its drive terms (armature, damping, frictionloss)
     params = tmp_path / "p.yaml"
     assert main(["identify", str(ROOT / "logs" / "sample_ident.csv"), "--robot", "ur5", "--method",
                  "consistent", "--out", str(params)]) == 0
     standard = load_params(params).standard.copy()
-    truth = standard[-18:].copy()
     standard[-18:] = 0
     from urident.sim.mjcf import write_mjcf
 
@@ -156,13 +154,18 @@ def test_gap_sim_names_the_missing_drive_terms_and_mujoco_measures_the_written_m
     for f in doc["findings"]:
         assert f["expressible"] == (f["effect"] in ("armature", "damping", "frictionloss", "rigid_body", "link_inertia",
                                                     "payload_error"))
-    # values of the final joint fit, where both terms of a joint were found: within 10 % of the truth
+    # values of the final joint fit, where both terms of a joint were found: within 10 % of the
+    # truth, the drive terms the sample logs were simulated with (the robot file's; logs/make_samples.py),
+    # not the removed estimate, which carries the realistic effects' bias of its own log
+    spec = ur5_models["spec"]
     found = {(f["effect"], f["joint"]): f["final_magnitude"] for f in doc["findings"]}
     both = [j for j in range(1, 7) if ("damping", j) in found and ("frictionloss", j) in found]
     assert len(both) >= 2, found
     for j in both:
-        assert abs(found[("frictionloss", j)]["frictionloss_nm"] - truth[11 + j]) <= 0.1 * truth[11 + j]
-        assert abs(found[("damping", j)]["damping_nm_s_per_rad"] - truth[5 + j]) <= 0.1 * truth[5 + j]
+        fc, fv = spec.arrays["coulomb_friction"][j - 1], spec.arrays["viscous_friction"][j - 1]
+        assert abs(found[("frictionloss", j)]["frictionloss_nm"] - fc) <= 0.1 * fc
+        assert abs(found[("damping", j)]["damping_nm_s_per_rad"] - fv) <= 0.1 * fv
+    assert all(f["written_magnitude"] is not None for f in doc["findings"] if f["expressible"])
     before = np.array(doc["baseline"]["rms_nm"])
     measured = np.array(doc["sim_corrected"]["rms_nm"])
     predicted = np.array(doc["sim_predicted"]["rms_nm"])

@@ -31,9 +31,10 @@ from urident.gap.where import finding_regime
 
 
 def select(scorer: Scorer, pool: list[Candidate], block: int, config: GapConfig, ctx_v: SetContext,
-           spec) -> tuple[list[Finding], list[list[Score]], list[dict], Fit]:
+           spec, prefer=None) -> tuple[list[Finding], list[list[Score]], list[dict], Fit]:
     """Forward, then backward selection over ``pool`` (module doc): the findings, every step's
-    scores, the confound rows and the fit of the selected candidates."""
+    scores, the confound rows and the fit of the selected candidates. ``prefer(candidate)``: in
+    phase B, a significant preferred candidate is taken before any other, and listed first."""
     selected: list[Candidate] = []
     findings: list[Finding] = []
     steps: list[list[Score]] = []
@@ -66,7 +67,8 @@ def select(scorer: Scorer, pool: list[Candidate], block: int, config: GapConfig,
             sig = [s for s in scores if s.significant and admissible(s, scores)]
             if not sig:
                 break
-            best = max(sig, key=lambda s: s.gain)
+            preferred = [s for s in sig if prefer is not None and prefer(s.candidate)]
+            best = max(preferred or sig, key=lambda s: s.gain)
         conf = confounded(best, scores, block, config)
         simpler = simplest_equivalent(best, conf, scores, block, config)
         if simpler is not best:
@@ -78,7 +80,7 @@ def select(scorer: Scorer, pool: list[Candidate], block: int, config: GapConfig,
         current = best.fit
 
     if len(selected) > 1:
-        kept = backward(scorer, selected, block, config)
+        kept = backward(scorer, selected, block, config, prefer)
         if [id(c) for c in kept] != [id(c) for c in selected]:
             # findings and confounds again, step by step in the kept order
             findings, confounds, current = [], [], scorer.evaluate([])
@@ -101,12 +103,13 @@ def confound_rows(step: int, chosen: Score, conf: list[Score]) -> list[dict]:
             for other in conf]
 
 
-def backward(scorer: Scorer, selected: list[Candidate], block: int, config: GapConfig) -> list[Candidate]:
+def backward(scorer: Scorer, selected: list[Candidate], block: int, config: GapConfig,
+             prefer=None) -> list[Candidate]:
     """The backward half of stepwise selection, on the forward pass's choices: each chosen effect
     is tested again on top of all the others (same tests as when it was chosen); the weakest one
     that is no longer significant is dropped, until all are. The kept ones are returned ordered
-    by that unique contribution, largest first. Why: a wrong joint can win the first forward step
-    by a hair (docs/gap-calibration.md)."""
+    by that unique contribution, largest first (those ``prefer`` names before the rest). Why: a
+    wrong joint can win the first forward step by a hair (docs/gap-calibration.md)."""
     kept = list(selected)
     while True:
         tests = []
@@ -115,7 +118,8 @@ def backward(scorer: Scorer, selected: list[Candidate], block: int, config: GapC
             tests.append(score_all(scorer, rest, [c], block, config)[0])
         weakest = min(tests, key=lambda s: s.gain)
         if len(kept) == 1 or weakest.significant:
-            return [s.candidate for s in sorted(tests, key=lambda s: -s.gain)]
+            order = sorted(tests, key=lambda s: (not (prefer and prefer(s.candidate)), -s.gain))
+            return [s.candidate for s in order]
         kept.remove(weakest.candidate)
 
 
