@@ -199,11 +199,24 @@ def link_inertia_candidates(spec, ctx) -> list[list[Candidate]]:
     return out
 
 
+def drive_fit(tau_hat, p, friction_eps: float = 0.01) -> np.ndarray:
+    """(N, 6) least-squares fit of armature, damping and Coulomb friction per joint to the measured
+    minus predicted torque of ``p`` (a Prepared)."""
+    out = np.zeros_like(tau_hat)
+    for j in range(6):
+        x = np.column_stack([p.qdd[:, j], p.qd[:, j], np.tanh(p.qd[:, j] / friction_eps)])
+        out[:, j] = x @ np.linalg.lstsq(x, p.tau[:, j] - tau_hat[:, j], rcond=None)[0]
+    return out
+
+
 def make_sim_context(sim, data) -> SetContext:
     p = data.prepared
     tau_hat = sim.predict(p.q, p.qd, p.qdd)
     tau_link = sim.rigid(p.q, p.qd, p.qdd)
-    dtau = smooth_derivative(tau_hat, p.t, p.segment, 1)
+    # current_delay delays the whole drive torque: a model without armature, damping or friction
+    # would leave their delay (−d·b·q̈ looks like armature, −d·∂τ/∂q·q̇ like damping) to the drive
+    # terms, so its column is the derivative of the prediction with them fitted per joint
+    dtau = smooth_derivative(tau_hat + drive_fit(tau_hat, p, sim.friction_eps), p.t, p.segment, 1)
     ddtau = smooth_derivative(tau_link, p.t, p.segment, 2)
     # one column (the prediction) stands in for a design matrix: nothing is refitted
     return SetContext(data, tau_hat.reshape(-1, 1), tau_hat, tau_link, dtau, ddtau, float(sim.friction_eps), {})
