@@ -34,7 +34,7 @@ def select(scorer: Scorer, pool: list[Candidate], block: int, config: GapConfig,
            spec, prefer=None) -> tuple[list[Finding], list[list[Score]], list[dict], Fit]:
     """Forward, then backward selection over ``pool`` (module doc): the findings, every step's
     scores, the confound rows and the fit of the selected candidates. ``prefer(candidate)``: in
-    phase B, a significant preferred candidate is taken before any other, and listed first."""
+    phase B, a significant preferred candidate is taken before any other."""
     selected: list[Candidate] = []
     findings: list[Finding] = []
     steps: list[list[Score]] = []
@@ -80,7 +80,7 @@ def select(scorer: Scorer, pool: list[Candidate], block: int, config: GapConfig,
         current = best.fit
 
     if len(selected) > 1:
-        kept = backward(scorer, selected, block, config, prefer)
+        kept = backward(scorer, selected, block, config)
         if [id(c) for c in kept] != [id(c) for c in selected]:
             # findings and confounds again, step by step in the kept order
             findings, confounds, current = [], [], scorer.evaluate([])
@@ -103,13 +103,12 @@ def confound_rows(step: int, chosen: Score, conf: list[Score]) -> list[dict]:
             for other in conf]
 
 
-def backward(scorer: Scorer, selected: list[Candidate], block: int, config: GapConfig,
-             prefer=None) -> list[Candidate]:
+def backward(scorer: Scorer, selected: list[Candidate], block: int, config: GapConfig) -> list[Candidate]:
     """The backward half of stepwise selection, on the forward pass's choices: each chosen effect
     is tested again on top of all the others (same tests as when it was chosen); the weakest one
     that is no longer significant is dropped, until all are. The kept ones are returned ordered
-    by that unique contribution, largest first (those ``prefer`` names before the rest). Why: a
-    wrong joint can win the first forward step by a hair (docs/gap-calibration.md)."""
+    by that unique contribution, largest first. Why: a wrong joint can win the first forward step
+    by a hair (docs/gap-calibration.md)."""
     kept = list(selected)
     while True:
         tests = []
@@ -118,8 +117,7 @@ def backward(scorer: Scorer, selected: list[Candidate], block: int, config: GapC
             tests.append(score_all(scorer, rest, [c], block, config)[0])
         weakest = min(tests, key=lambda s: s.gain)
         if len(kept) == 1 or weakest.significant:
-            order = sorted(tests, key=lambda s: (not (prefer and prefer(s.candidate)), -s.gain))
-            return [s.candidate for s in order]
+            return [s.candidate for s in sorted(tests, key=lambda s: -s.gain)]
         kept.remove(weakest.candidate)
 
 
