@@ -112,9 +112,10 @@ def main() -> None:
     print("cut measured by MuJoCo [%]      " + " ".join(f"{v:7.1f}" for v in cut))
     print("cut predicted by the report [%] " + " ".join(f"{v:7.1f}" for v in pred))
     print(f"gap --sim wall time {wall:.1f} s")
-    print(json.dumps({"robot": spec.name, "trajectory": traj.name, "seed": args.seed, "findings": rows, "baseline_rms_nm": before.tolist(),
-                      "corrected_rms_nm": after.tolist(), "armature_share_pct": arm_share.round(3).tolist(),
-                      "noise_nm": noise.round(4).tolist(), "not_identified": doc.get("not_identified", []), "cut_pct": cut.round(2).tolist(),
+    print(json.dumps({"robot": spec.name, "trajectory": traj.name, "seed": args.seed, "findings": rows,
+                      "baseline_rms_nm": before.tolist(), "corrected_rms_nm": after.tolist(),
+                      "armature_share_pct": arm_share.round(3).tolist(), "noise_nm": noise.round(4).tolist(),
+                      "not_identified": doc.get("not_identified", []), "cut_pct": cut.round(2).tolist(),
                       "predicted_cut_pct": pred.round(2).tolist(),
                       "max_disagreement_points": float(np.max(np.abs(cut - pred))), "wall_s": round(wall, 1)}))
 
