@@ -192,9 +192,10 @@ def test_downloaded_like_ur5e_mjcf_against_a_realistic_run(tmp_path):
                  "--effects", "realistic"]) == 0
     js = tmp_path / "gap.json"
     # the catalogue effects that bias the drive terms on this run (offsets, the 3 ms delay, load
-    # friction, Stribeck, joint 2's elasticity): the others only cost time here
+    # friction, Stribeck, joint 2's elasticity): the others only cost time here; 20 findings: the 18
+    # drive terms and what comes next
     assert main(["gap", "--robot", "ur5e", "--sim", str(model), "--valid", str(log), "--write-sim",
-                 str(tmp_path / "fixed.xml"), "--json-out", str(js),
+                 str(tmp_path / "fixed.xml"), "--json-out", str(js), "--max-effects", "20",
                  "--effects", "current_offset,current_delay,load_friction,stribeck,joint_elasticity"]) == 0
     doc = json.loads(js.read_text())
     effects = [f["effect"] for f in doc["findings"]]
