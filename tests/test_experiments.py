@@ -63,3 +63,23 @@ def test_validation_start_is_within_the_demos_approach_of_the_identification_sta
     ident = load_trajectory(EXPERIMENTS / f"{robot}_ident.yaml").trajectory
     valid = load_trajectory(EXPERIMENTS / f"{robot}_valid.yaml").trajectory
     assert np.abs(valid.q_start - ident.q_end).max() < 3.2
+
+
+def test_the_sim_gap_validation_run_passes_every_check_and_tracks_within_the_session_limit(tmp_path):
+    """experiments/ur5e_sim_gap.yaml (four base periods in 20 s, benchmarks/sim_gap.py): as safe as the
+    pairs, and servoJ follows it within the session's tracking-error limit on the simulated controller."""
+    from urident.cli.main import main
+    from urident.logs import load_log
+    from urident.session.config import MonitorConfig
+
+    loaded = load_trajectory(EXPERIMENTS / "ur5e_sim_gap.yaml")
+    spec = load_robot("ur5e")
+    report = check_trajectory(spec, loaded.trajectory, spec.controller_rate_hz, loaded.limits,
+                              collision_backend="numpy")
+    assert report.ok, report
+    log = tmp_path / "run.csv"
+    assert main(["simulate", "--trajectory", str(EXPERIMENTS / "ur5e_sim_gap.yaml"), "--out", str(log)]) == 0
+    rec = load_log(log)
+    q_cmd = loaded.trajectory.evaluate(np.asarray(rec.t) - rec.t[0])[0]
+    error = np.abs(q_cmd - np.asarray(rec.q)).max()
+    assert 0 < error < MonitorConfig().max_tracking_error_rad

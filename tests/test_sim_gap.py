@@ -135,13 +135,11 @@ def test_write_sim_changes_exactly_what_it_says(ur5_models, tmp_path):
 def test_gap_sim_names_the_missing_drive_terms_and_mujoco_measures_the_written_model(ur5_models, tmp_path, capsys):
     from urident.ident import load_params
 
-    # the truth: a consistent estimate exported with its drive terms; the baseline: the same
-    # model with armature, damping and frictionloss removed
+    # the baseline: a consistent estimate exported without its drive terms (armature, damping, frictionloss)
     params = tmp_path / "p.yaml"
     assert main(["identify", str(ROOT / "logs" / "sample_ident.csv"), "--robot", "ur5", "--method",
                  "consistent", "--out", str(params)]) == 0
     standard = load_params(params).standard.copy()
-    truth = standard[-18:].copy()
     standard[-18:] = 0
     from urident.sim.mjcf import write_mjcf
 
@@ -156,13 +154,18 @@ def test_gap_sim_names_the_missing_drive_terms_and_mujoco_measures_the_written_m
     for f in doc["findings"]:
         assert f["expressible"] == (f["effect"] in ("armature", "damping", "frictionloss", "rigid_body", "link_inertia",
                                                     "payload_error"))
-    # values of the final joint fit, where both terms of a joint were found: within 10 % of the truth
+    # values of the final joint fit, where both terms of a joint were found: within 10 % of the
+    # truth, the drive terms the sample logs were simulated with (the robot file's; logs/make_samples.py),
+    # not the removed estimate, which carries the realistic effects' bias of its own log
+    spec = ur5_models["spec"]
     found = {(f["effect"], f["joint"]): f["final_magnitude"] for f in doc["findings"]}
     both = [j for j in range(1, 7) if ("damping", j) in found and ("frictionloss", j) in found]
     assert len(both) >= 2, found
     for j in both:
-        assert abs(found[("frictionloss", j)]["frictionloss_nm"] - truth[11 + j]) <= 0.1 * truth[11 + j]
-        assert abs(found[("damping", j)]["damping_nm_s_per_rad"] - truth[5 + j]) <= 0.1 * truth[5 + j]
+        fc, fv = spec.arrays["coulomb_friction"][j - 1], spec.arrays["viscous_friction"][j - 1]
+        assert abs(found[("frictionloss", j)]["frictionloss_nm"] - fc) <= 0.1 * fc
+        assert abs(found[("damping", j)]["damping_nm_s_per_rad"] - fv) <= 0.1 * fv
+    assert all(f["written_magnitude"] is not None for f in doc["findings"] if f["expressible"])
     before = np.array(doc["baseline"]["rms_nm"])
     measured = np.array(doc["sim_corrected"]["rms_nm"])
     predicted = np.array(doc["sim_predicted"]["rms_nm"])
@@ -174,25 +177,53 @@ def test_gap_sim_names_the_missing_drive_terms_and_mujoco_measures_the_written_m
 
 def test_downloaded_like_ur5e_mjcf_against_a_realistic_run(tmp_path):
     """The acceptance scenario of benchmarks/sim_gap.py: nominal masses, cylinder inertias, no drive
-    terms; a validation run of the simulated controller with the realistic effects (offline)."""
+    terms; a validation run of the simulated controller with the realistic effects (offline) on the
+    fast validation trajectory, where every joint's armature is above the noise."""
+    from urident.gap.sim_baseline import DRIVE_EFFECTS
     from urident.model import load_robot
+    from urident.model.parameters import body_slice
     from urident.sim.mjcf import downloaded_like_standard, write_mjcf
 
     spec = load_robot("ur5e")
-    model = write_mjcf(spec, downloaded_like_standard(spec), tmp_path / "downloaded.xml")
+    downloaded = downloaded_like_standard(spec)
+    model = write_mjcf(spec, downloaded, tmp_path / "downloaded.xml")
     log = tmp_path / "valid.csv"
-    assert main(["simulate", "--trajectory", str(ROOT / "experiments" / "ur5e_valid.yaml"), "--out", str(log),
+    assert main(["simulate", "--trajectory", str(ROOT / "experiments" / "ur5e_sim_gap.yaml"), "--out", str(log),
                  "--effects", "realistic"]) == 0
     js = tmp_path / "gap.json"
+    # the catalogue effects that bias the drive terms on this run (offsets, the 3 ms delay, load
+    # friction, Stribeck, joint 2's elasticity): the others only cost time here; 20 findings: the 18
+    # drive terms and what comes next
     assert main(["gap", "--robot", "ur5e", "--sim", str(model), "--valid", str(log), "--write-sim",
-                 str(tmp_path / "fixed.xml"), "--json-out", str(js)]) == 0
+                 str(tmp_path / "fixed.xml"), "--json-out", str(js), "--max-effects", "20",
+                 "--effects", "current_offset,current_delay,load_friction,stribeck,joint_elasticity"]) == 0
     doc = json.loads(js.read_text())
-    assert doc["findings"][0]["effect"] == "frictionloss"
+    effects = [f["effect"] for f in doc["findings"]]
+    # friction and armature named first: every joint's first finding is one of them, the first 12
+    # findings are, and all 18 are named (the wrist's armature, 0.15-0.3 N·m, may come after the big
+    # joints' offsets: findings are listed by their unique contribution)
+    assert set(effects[:12]) <= set(DRIVE_EFFECTS), effects
+    for j in range(1, 7):
+        assert next(f["effect"] for f in doc["findings"] if f["joint"] == j) in DRIVE_EFFECTS, effects
+    assert {(f["effect"], f["joint"]) for f in doc["findings"] if f["effect"] in DRIVE_EFFECTS} == {
+        (e, j) for e in DRIVE_EFFECTS for j in range(1, 7)}
+    assert not doc["not_identified"]
     found = {(f["effect"], f["joint"]): f["final_magnitude"] for f in doc["findings"]}
-    for j in (1, 2, 3):     # the big joints: the robot file's drive values are the simulated truth
-        assert abs(found[("frictionloss", j)]["frictionloss_nm"] / spec.arrays["coulomb_friction"][j - 1] - 1) <= 0.1
-    for j in (1, 2):
-        assert abs(found[("damping", j)]["damping_nm_s_per_rad"] / spec.arrays["viscous_friction"][j - 1] - 1) <= 0.1
+    # armature as the data show it: rotor inertia plus what the model's link inertia errors add
+    # along q̈_j on these states (gap --sim leaves that share to armature)
+    from urident.gap.data import build_set
+    from urident.logs import load_log
+    from urident.model import regressor_blocks
+
+    p = build_set([load_log(log)], spec).prepared
+    bodies = np.r_[tuple(body_slice(j) for j in range(6))]
+    link_error = regressor_blocks(spec, p.q, p.qd, p.qdd)[:, :, bodies] @ (spec.nominal_params - downloaded)[bodies]
+    seen = spec.arrays["rotor_inertia"] + np.sum(link_error * p.qdd, axis=0) / np.sum(p.qdd ** 2, axis=0)
+    for j in range(1, 7):     # the robot file's drive values are the simulated truth
+        fc, fv = spec.arrays["coulomb_friction"][j - 1], spec.arrays["viscous_friction"][j - 1]
+        assert abs(found[("frictionloss", j)]["frictionloss_nm"] / fc - 1) <= 0.1
+        assert abs(found[("damping", j)]["damping_nm_s_per_rad"] / fv - 1) <= 0.1
+        assert abs(found[("armature", j)]["armature_kg_m2"] / seen[j - 1] - 1) <= 0.1, (j, found, seen)
     before = np.array(doc["baseline"]["rms_nm"])
     after = np.array(doc["sim_corrected"]["rms_nm"])
     predicted = np.array(doc["sim_predicted"]["rms_nm"])

@@ -64,8 +64,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="a finding fitted inside the validation logs (CV mode) must correct its "
                         "joint by an RMS of at least RATIO x the joint's white-noise torque "
                         "(default 0.5; 0 turns the floor off)")
-    p.add_argument("--max-effects", type=options.int_range(1, 20), default=None, metavar="N",
-                   help="at most this many effects (stepwise selection, default 3; 12 with --sim)")
+    p.add_argument("--max-effects", type=options.int_range(1, 40), default=None, metavar="N",
+                   help="at most this many effects (stepwise selection, default 3; 30 with --sim)")
     p.add_argument("--seed", type=options.seed, default=0, help="bootstrap seed (default 0)")
     options.add_rerun_arguments(p, "residual maps and comparison")
     from urident.logs import add_log_arguments

@@ -8,9 +8,9 @@ import json
 
 from urident.cli import options
 
-#: --max-effects default with --sim: a downloaded model typically lacks three terms on six joints;
-#: more (18) also takes the wrist's small terms but lets Stribeck share joint 2's friction on the UR5 sample
-SIM_MAX_EFFECTS = 12
+#: --max-effects default with --sim: a downloaded model lacks three drive terms on six joints (18),
+#: and what the data show beyond them (offsets, delay, link corrections) takes a few more
+SIM_MAX_EFFECTS = 30
 
 
 def run_sim(args: argparse.Namespace, load_all, json_default) -> int:
@@ -22,8 +22,8 @@ def run_sim(args: argparse.Namespace, load_all, json_default) -> int:
     from urident.gap import GapConfig, format_report
     from urident.gap.candidates import EFFECTS
     from urident.gap.results import e_n, rms
-    from urident.gap.sim_baseline import (corrections, diagnose_sim, expressible, expressible_fit,
-                                          link_inertia_columns)
+    from urident.gap.sim_baseline import (corrections, detection_limits, diagnose_sim, expressible,
+                                          expressible_fit, link_inertia_columns)
     from urident.model import load_robot
     from urident.sim.models import load_sim_model, model_format
 
@@ -64,7 +64,16 @@ def run_sim(args: argparse.Namespace, load_all, json_default) -> int:
             if aliased:
                 print(f"    (holds rotor inertia plus the error of link {f.joint}'s inertia {', '.join(aliased)} about "
                       f"K_{f.joint}: they act alike on these states and in the simulator, nothing tells them apart)")
+    limits = detection_limits(result)
+    if limits:
+        print("  not found: on these states, on top of the findings, a term below this is within the noise "
+              "(not identifiable, not shown absent):")
+        col = {"armature": "q̈", "damping": "q̇", "frictionloss": "tanh(q̇/ε)"}
+        for d in limits:
+            print(f"  {d['effect']:22s} joint {d['joint']}  below about {d['limit']:.3g} {d['unit']} "
+                  f"({d['below_nm']:.3f} N·m at {col[d['effect']]} RMS {d['column_rms']:.3g})")
     doc = result.as_dict()
+    doc["not_identified"] = limits
     final = final_fit
     for fd, f in zip(doc.get("findings", []), result.findings):
         fd["expressible"] = expressible(fmt, f.effect)
@@ -87,6 +96,16 @@ def run_sim(args: argparse.Namespace, load_all, json_default) -> int:
     if len(written) != len(chosen):
         fit = result.correction(written)
     predicted = r0 - fit.change(result.valid) if written else r0
+    # the value written: the expressible findings refitted without the rest (the format's
+    # equivalent, e.g. a frictionloss that also carries a Stribeck term's average), beside the
+    # final joint fit's value of the term itself
+    kept = {(c.effect, c.joint): c.magnitude(beta, spec) for c, beta in fit.coefficients().items()} if written else {}
+    written_arm = corrections(result, written)["armature"] if written else np.zeros(6)
+    for (effect, j), value in kept.items():
+        if effect == "armature":      # with what the link corrections hand to it (off_armature)
+            value["armature_kg_m2"] = float(written_arm[j])
+    for fd, f in zip(doc.get("findings", []), result.findings):
+        fd["written_magnitude"] = kept.get((f.effect, None if f.effect == "payload_error" else f.joint - 1))
     inexpressible = [c for c in result.chosen() if not expressible(fmt, c.effect)]
     shrink = lambda before, after: 100.0 * (1 - after / np.where(before > 0, before, np.inf))  # noqa: E731
     print("  shrink of the validation RMS per joint [%]:")

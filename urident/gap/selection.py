@@ -31,9 +31,10 @@ from urident.gap.where import finding_regime
 
 
 def select(scorer: Scorer, pool: list[Candidate], block: int, config: GapConfig, ctx_v: SetContext,
-           spec) -> tuple[list[Finding], list[list[Score]], list[dict], Fit]:
+           spec, prefer=None) -> tuple[list[Finding], list[list[Score]], list[dict], Fit]:
     """Forward, then backward selection over ``pool`` (module doc): the findings, every step's
-    scores, the confound rows and the fit of the selected candidates."""
+    scores, the confound rows and the fit of the selected candidates. ``prefer(candidate)``: in
+    phase B, a significant preferred candidate is taken before any other."""
     selected: list[Candidate] = []
     findings: list[Finding] = []
     steps: list[list[Score]] = []
@@ -66,7 +67,8 @@ def select(scorer: Scorer, pool: list[Candidate], block: int, config: GapConfig,
             sig = [s for s in scores if s.significant and admissible(s, scores)]
             if not sig:
                 break
-            best = max(sig, key=lambda s: s.gain)
+            preferred = [s for s in sig if prefer is not None and prefer(s.candidate)]
+            best = max(preferred or sig, key=lambda s: s.gain)
         conf = confounded(best, scores, block, config)
         simpler = simplest_equivalent(best, conf, scores, block, config)
         if simpler is not best:

@@ -41,6 +41,8 @@ from urident.gap.residual import SetContext, smooth_derivative
 from urident.ident.design import ModelConfig
 
 SIM_EFFECTS = ("armature", "damping", "frictionloss", "rigid_body", "link_inertia")
+#: the joint drive terms a downloaded model lacks most often; selected before the link terms
+DRIVE_EFFECTS = ("armature", "damping", "frictionloss")
 #: Findings each format can express (the rest: the catalogue's effects, a drive gain scale).
 EXPRESSIBLE = {"mjcf": frozenset({"armature", "damping", "frictionloss", "rigid_body", "link_inertia",
                                   "payload_error"}),
@@ -160,6 +162,27 @@ def link_inertia_columns(spec, ctx, j: int) -> tuple[tuple[str, ...], tuple[str,
     return tuple(kept), tuple(aliased)
 
 
+LINK_EFFECTS = ("rigid_body", "link_inertia")
+
+
+def off_armature(c: Candidate, ctx) -> Candidate:
+    """``c`` (a link correction) with the part of its columns that the armature columns q̈_k (on
+    joint k's rows) express taken off, on the validation states: a link's mass or inertia also acts
+    as inertia about every earlier joint, nearly as a constant there, and would take over the
+    joints' missing armature. The correction then explains only what armature cannot; its
+    coefficients β change the link by β and armature k by −β·α_k (``settings["armature_alpha"]``,
+    (k, 6)), which :func:`corrections` writes, so the simulator reproduces the projected columns."""
+    x = c.features(ctx)                                      # (N, 6, k)
+    qdd = ctx.qdd
+    denom = np.sum(qdd ** 2, axis=0)
+    alpha = np.einsum("nji,nj->ij", x, qdd) / np.where(denom > 0, denom, np.inf)   # (k, 6)
+
+    def build(cx, raw=c.build, alpha=alpha):
+        return np.asarray(raw(cx), float) - cx.qdd[:, :, None] * alpha.T[None, :, :]
+    return SimCandidate(c.effect, c.joint, c.variant, c.mode, c.columns, build,
+                        {**c.settings, "armature_alpha": alpha})
+
+
 def link_inertia_candidates(spec, ctx) -> list[list[Candidate]]:
     """One ``link_inertia`` family per link whose inertia the validation states can see."""
     from urident.model.parameters import body_slice
@@ -176,11 +199,24 @@ def link_inertia_candidates(spec, ctx) -> list[list[Candidate]]:
     return out
 
 
+def drive_fit(tau_hat, p, friction_eps: float = 0.01) -> np.ndarray:
+    """(N, 6) least-squares fit of armature, damping and Coulomb friction per joint to the measured
+    minus predicted torque of ``p`` (a Prepared)."""
+    out = np.zeros_like(tau_hat)
+    for j in range(6):
+        x = np.column_stack([p.qdd[:, j], p.qd[:, j], np.tanh(p.qd[:, j] / friction_eps)])
+        out[:, j] = x @ np.linalg.lstsq(x, p.tau[:, j] - tau_hat[:, j], rcond=None)[0]
+    return out
+
+
 def make_sim_context(sim, data) -> SetContext:
     p = data.prepared
     tau_hat = sim.predict(p.q, p.qd, p.qdd)
     tau_link = sim.rigid(p.q, p.qd, p.qdd)
-    dtau = smooth_derivative(tau_hat, p.t, p.segment, 1)
+    # current_delay delays the whole drive torque: a model without armature, damping or friction
+    # would leave their delay (−d·b·q̈ looks like armature, −d·∂τ/∂q·q̇ like damping) to the drive
+    # terms, so its column is the derivative of the prediction with them fitted per joint
+    dtau = smooth_derivative(tau_hat + drive_fit(tau_hat, p, sim.friction_eps), p.t, p.segment, 1)
     ddtau = smooth_derivative(tau_link, p.t, p.segment, 2)
     # one column (the prediction) stands in for a design matrix: nothing is refitted
     return SetContext(data, tau_hat.reshape(-1, 1), tau_hat, tau_link, dtau, ddtau, float(sim.friction_eps), {})
@@ -203,6 +239,8 @@ def diagnose_sim(valid_recordings: Sequence, spec, sim, *, drive_gains=None,
     scorer = Scorer(ctx, ctx, config.n_folds)
     where = describe_where(ctx, ctx)
     fams = sim_candidates(spec) + link_inertia_candidates(spec, ctx)
+    if expressible(sim.fmt, "armature"):
+        fams = [[off_armature(c, ctx) if c.effect in LINK_EFFECTS else c for c in fam] for fam in fams]
     fams.append([payload_error(spec, "cv")])
     fams += [[torque_constant_error(j, "cv")] for j in range(6)]
     seen = {("payload_error", None)} | {("torque_constant_error", j) for j in range(6)}
@@ -216,12 +254,35 @@ def diagnose_sim(valid_recordings: Sequence, spec, sim, *, drive_gains=None,
             fams.append(fam)
     pool = [max(f, key=scorer.training_gain) if len(f) > 1 else f[0] for f in fams]
     block = default_block_length(ctx.n, valid.sample_rate * config.block_s)
-    findings, steps, confounds, current = select(scorer, pool, block, config, ctx, spec)
     r0 = ctx.residual
     baseline = SimBaseline(f"{sim.fmt} model {sim.path.name}", ModelConfig(friction_eps=sim.friction_eps),
                            sim.fmt, str(sim.path))
-    return GapResult(spec.name, baseline, ctx, ctx, e_n(r0), rms(r0), e_n(current.residual),
-                     rms(current.residual), findings, current, steps, confounds, where, config, scorer)
+    while True:
+        # a joint's drive terms first: a link's mass/CoM column also acts as inertia about earlier
+        # joints (link 2's mass at the elbow as armature of joints 1-2), and taken first it soaks up
+        # their missing armature with an unphysical mass (+10.7 kg on the UR5e's 8 kg link 2)
+        findings, steps, confounds, current = select(scorer, pool, block, config, ctx, spec,
+                                                     prefer=lambda c: c.effect in DRIVE_EFFECTS)
+        result = GapResult(spec.name, baseline, ctx, ctx, e_n(r0), rms(r0), e_n(current.residual),
+                           rms(current.residual), findings, current, steps, confounds, where, config, scorer)
+        # a link correction that is no real mass distribution (alone or with only the expressible
+        # findings) holds what other terms should: select again without it
+        bad = unrealisable_chosen(result, sim, spec)
+        if not bad:
+            return result
+        pool = [c for c in pool if not any(c is b for b in bad)]
+
+
+def unrealisable_chosen(result, sim, spec) -> list[Candidate]:
+    """The chosen rigid_body / link_inertia candidates whose correction (in the fit of all chosen
+    ones, or of the expressible ones alone) is not a real mass distribution."""
+    from urident.sim.correct import unrealisable_links
+
+    chosen = result.chosen()
+    links = set(unrealisable_links(sim, spec, corrections(result)))
+    if result.model.fmt in EXPRESSIBLE:
+        links |= set(unrealisable_links(sim, spec, corrections(result, expressible_fit(result)[0])))
+    return [c for c in chosen if c.effect in ("rigid_body", "link_inertia") and c.joint in links]
 
 
 def corrections(result, candidates=None) -> dict:
@@ -238,6 +299,8 @@ def corrections(result, candidates=None) -> dict:
     for c, beta in fit.coefficients().items():
         if not expressible(fmt, c.effect):
             continue
+        if "armature_alpha" in c.settings:
+            out["armature"] -= np.asarray(beta, float) @ c.settings["armature_alpha"]
         if c.effect in ("armature", "damping", "frictionloss"):
             out[c.effect][c.joint] += beta[0]
         elif c.effect == "rigid_body":
@@ -254,3 +317,36 @@ def expressible_fit(result):
     """The chosen candidates the format can express, fitted together on all validation samples."""
     chosen = [c for c in result.chosen() if expressible(result.model.fmt, c.effect)]
     return chosen, result.correction(chosen)
+
+
+#: units of the drive terms' values
+DRIVE_UNITS = {"armature": "kg·m²", "damping": "N·m·s/rad", "frictionloss": "N·m"}
+
+
+def detection_limits(result) -> list[dict]:
+    """The drive terms of the format (armature, damping, frictionloss per joint) that are not among
+    the findings, each with the smallest value these validation states would have shown: its
+    torque must reach ``cv_min_noise_ratio`` × the joint's white-noise torque and shrink the
+    joint's remaining RMS by ``min_shrink_pct`` (an uncorrelated term of RMS a shrinks R to
+    √(R² − a²)); below that it is not identifiable here, not shown to be absent."""
+    from urident.gap.significance import noise_sigma
+
+    ctx, config = result.valid, result.config
+    found = {(f.effect, f.joint - 1) for f in result.findings}
+    sigma = noise_sigma(ctx.residual)
+    keep = 1.0 - config.min_shrink_pct / 100.0
+    cols = {"armature": ctx.qdd, "damping": ctx.qd, "frictionloss": ctx.sign()}
+    out = []
+    for effect in DRIVE_EFFECTS:
+        unit = DRIVE_UNITS[effect]
+        if not expressible(result.model.fmt, effect):
+            continue
+        col_rms = np.sqrt(np.mean(cols[effect] ** 2, axis=0))
+        for j in range(6):
+            if (effect, j) in found:
+                continue
+            torque = max(config.cv_min_noise_ratio * sigma[j], result.final_rms[j] * np.sqrt(1 - keep ** 2))
+            limit = torque / col_rms[j] if col_rms[j] > 0 else float("inf")
+            out.append({"effect": effect, "joint": j + 1, "unit": unit, "below_nm": float(torque),
+                        "limit": float(limit), "column_rms": float(col_rms[j])})
+    return out
