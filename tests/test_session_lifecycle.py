@@ -117,7 +117,10 @@ def test_killed_urident_run_lets_the_session_stop_the_robot(files):
     log = load_log(out)
     reason = log.metadata["abort_reason"]
     assert log.status == "aborted"
-    assert reason == "because the urident run process died (killed by signal 9, SIGKILL)", reason
+    # the cause is named while the killed process is still a zombie; a reaper as fast as a shell's
+    # leaves only the death itself
+    assert reason in ("because the urident run process died (killed by signal 9, SIGKILL)",
+                      "because the urident run process died"), reason
     line = the_error_line(stderr)  # the session's, on the terminal it shares
     assert line.startswith(f"urident: error: run aborted {reason}; robot stopped; "), line
     assert states == {"STOPPED"}

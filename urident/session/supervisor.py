@@ -562,7 +562,8 @@ class _ChildEvents(SessionEvents):
     def caller_died(self) -> None:
         """The caller's end of the pipe closed: end the session as SIGTERM would, saying why."""
         how = process_death(self.parent_pid)
-        self.parent_gone = f"because the urident run process died ({how or 'gone'})"
+        # once its own parent (a shell, a test) has reaped it, how it died can no longer be read
+        self.parent_gone = ("because the urident run process died" + (f" ({how})" if how else ""))
         os.kill(os.getpid(), signal.SIGTERM)
 
 
