@@ -9,11 +9,13 @@ estimates it with that arm and a tare: the same trajectory run without the tool 
 ``--no-tare`` to leave it out). Drive gains: ``torque_constant_error`` on, the payload trajectory
 (``--gains-trajectory``) without and with a known 5 kg load, ``urident drive-gains``; scored on the
 joints it reports as calibrated. Principal inertias are scored where the estimate reports the
-inertia identifiable. Prints one line per case; the last line is one JSON object.
+inertia identifiable. ``--repeats N``: each case rides the trajectory N times (and the tare N
+times), each run with its own noise seed, all passed to one ``urident payload``; the inertia's σ
+should then fall as 1/√N. Prints one line per case; the last line is one JSON object.
 
     python benchmarks/payload.py [--robot ur10e] [--seeds 1,2,3] [--trajectory FILE] [--no-tare]
                                  [--gains-trajectory FILE] [--payloads 0,3] [--no-gains | --gains-only]
-                                 [--inertia-sigma]
+                                 [--inertia-sigma] [--repeats N]
 """
 
 from __future__ import annotations
@@ -58,7 +60,7 @@ def _effects(path: Path, extra: list[dict]) -> Path:
     return path
 
 
-def _inertia_sigma(spec, arm_path: Path, log: Path, tare_log: Path | None, true_i: np.ndarray) -> dict:
+def _inertia_sigma(spec, arm_path: Path, logs: list[Path], tare_logs: list[Path], true_i: np.ndarray) -> dict:
     """The case refit with the inertia kept free (its tolerance rule off): the largest σ of the
     inertia entries, as a multiple of the rule's 15 % of the true mean principal inertia."""
     import urident.ident.payload as payload_module
@@ -66,11 +68,11 @@ def _inertia_sigma(spec, arm_path: Path, log: Path, tare_log: Path | None, true_
     from urident.logs import load_log
 
     arm = load_params(arm_path)
-    tare = None if tare_log is None else predict_recordings(arm, [load_log(tare_log)], spec).data
+    tare = predict_recordings(arm, [load_log(p) for p in tare_logs], spec).data if tare_logs else None
     saved = dict(payload_module.TOLERANCES)
     payload_module.TOLERANCES.update(inertia_rel=np.inf, inertia_abs=np.inf)   # the σ rule off
     try:
-        est = payload_module.estimate_payload(arm, spec, predict_recordings(arm, [load_log(log)], spec).data,
+        est = payload_module.estimate_payload(arm, spec, predict_recordings(arm, [load_log(p) for p in logs], spec).data,
                                               unloaded=tare)
     finally:
         payload_module.TOLERANCES.update(saved)
@@ -96,7 +98,11 @@ def main() -> None:
     ap.add_argument("--workdir", default=None, help="keep the runs in this directory (default: a temporary one)")
     ap.add_argument("--inertia-sigma", action="store_true",
                     help="also fit each case with the inertia kept free and print its σ against the 15 %% rule")
+    ap.add_argument("--repeats", type=int, default=1, metavar="N",
+                    help="runs of the loaded (and of the tare) trajectory per case, each with its own noise seed")
     args = ap.parse_args()
+    if args.repeats < 1:
+        ap.error("--repeats must be at least 1")
     from urident.ident.payload import Payload
     from urident.model import load_robot
 
@@ -120,20 +126,23 @@ def main() -> None:
                         "--effects", str(_effects(d / f"e_arm{seed}.txt", []))])
                 _quiet(["identify", str(arm_log), "--robot", args.robot, "--out", str(arm),
                         "--friction-extra", "offset,load,stribeck"])
-            tare = []
-            if args.tare and chosen:  # the payload trajectory without the tool (its own noise seed)
-                tare_log = d / f"unloaded{seed}.csv"
-                _quiet(["simulate", "--trajectory", str(load_traj), "--out", str(tare_log), "--seed",
-                        str(300 + seed), "--effects", str(_effects(d / f"e_tare{seed}.txt", []))])
-                tare = ["--unloaded", str(tare_log)]
+            tare_logs = []
+            if args.tare and chosen:  # the payload trajectory without the tool (each run its own noise seed)
+                for r in range(args.repeats):
+                    tare_logs.append(d / f"unloaded{seed}" f"{f'_r{r}' if r else ''}.csv")
+                    _quiet(["simulate", "--trajectory", str(load_traj), "--out", str(tare_logs[-1]), "--seed",
+                            str(300 + seed + 1000 * r), "--effects", str(_effects(d / f"e_tare{seed}.txt", []))])
+            tare = ["--unloaded", *map(str, tare_logs)] if tare_logs else []
             for k in chosen:
                 mass, com, diag, prod = PAYLOADS[k]
                 eff = _effects(d / f"e_{seed}_{k}.txt", [{"name": "payload_error", "mass_kg": mass, "offset_m": com,
                                                            "inertia_kg_m2": diag, "inertia_products_kg_m2": prod}])
-                log, out = d / f"load{seed}_{k}.csv", d / f"p{seed}_{k}.json"
-                _quiet(["simulate", "--trajectory", str(load_traj), "--out", str(log), "--seed", str(100 + seed),
-                        "--effects", str(eff)])
-                _quiet(["payload", str(log), "--params", str(arm), "--out", str(d / f"p{seed}_{k}_payload.yaml"),
+                logs, out = [d / f"load{seed}_{k}" f"{f'_r{r}' if r else ''}.csv" for r in range(args.repeats)], \
+                    d / f"p{seed}_{k}.json"
+                for r, log in enumerate(logs):  # repeat r > 0 gets its own noise seed; r = 0 is the single run's
+                    _quiet(["simulate", "--trajectory", str(load_traj), "--out", str(log), "--seed",
+                            str(100 + seed + 1000 * r), "--effects", str(eff)])
+                _quiet(["payload", *map(str, logs), "--params", str(arm), "--out", str(d / f"p{seed}_{k}_payload.yaml"),
                         "--json-out", str(out), *tare])
                 est = json.loads(out.read_text())
                 from urident.simcontroller.effects.dynamics import inertia_matrix
@@ -141,15 +150,15 @@ def main() -> None:
                 true_i = np.linalg.eigvalsh(inertia_matrix(diag, prod))
                 est_i = np.linalg.eigvalsh(np.array(est["inertia_kg_m2"]))
                 inertia_ok = {"Jxx", "Jyy", "Jzz"} <= set(est["identifiable"])
-                case = {"seed": seed, "mass_kg": mass, "mass_err_pct": 100 * (est["mass_kg"] / mass - 1),
+                case = {"seed": seed, "mass_kg": mass, "repeats": args.repeats, "mass_err_pct": 100 * (est["mass_kg"] / mass - 1),
                         "com_err_mm": 1000 * float(np.max(np.abs(np.array(est["com_m"]) - com))),
                         "inertia_identifiable": inertia_ok,
                         "principal_inertia_err_pct": [float(v) for v in 100 * (est_i / true_i - 1)],
                         "identifiable": est["identifiable"]}
                 if args.inertia_sigma:
-                    case.update(_inertia_sigma(spec, arm, log, tare_log if args.tare else None, true_i))
+                    case.update(_inertia_sigma(spec, arm, logs, tare_logs, true_i))
                 cases.append(case)
-                print(f"seed {seed}, {mass:5.1f} kg: mass {case['mass_err_pct']:+.2f} %, CoM {case['com_err_mm']:.2f} mm, "
+                print(f"seed {seed}, {mass:5.1f} kg" + (f" ×{args.repeats}" if args.repeats > 1 else "") + f": mass {case['mass_err_pct']:+.2f} %, CoM {case['com_err_mm']:.2f} mm, "
                       f"inertia {'identified' if inertia_ok else 'not identifiable'}"
                       + (f" (of it: {', '.join(n for n in est['identifiable'] if n.startswith('J')) or 'none'})"
                          if not inertia_ok else "")
@@ -185,6 +194,7 @@ def main() -> None:
     inertia_err = max((max(abs(v) for v in c["principal_inertia_err_pct"]) for c in with_inertia), default=None)
     gains_err = max((abs(e) for c in gains_cases for e, ok in zip(c["err_pct"], c["calibrated"]) if ok), default=None)
     summary = {"robot": args.robot, "seeds": seeds, "payload_trajectory": str(load_traj.name), "tare": args.tare,
+               "repeats": args.repeats,
                "gains_trajectory": str(gains_traj.name),
                "max_mass_err_pct": mass_err, "max_com_err_mm": com_err,
                "inertia_identified_cases": len(with_inertia), "cases": len(cases),
