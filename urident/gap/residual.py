@@ -27,6 +27,11 @@ DERIVATIVE_FILTER_HZ = 15.0
 DESIGN_CACHE_BYTES = 160 * 2 ** 20
 
 
+def design_fits_cache(n_samples: int, n_params: int) -> bool:
+    """Whether an (N, 6, p) float64 design takes at most :data:`DESIGN_CACHE_BYTES`."""
+    return n_samples * 6 * n_params * 8 <= DESIGN_CACHE_BYTES
+
+
 def fit_baseline(spec, ident: GapSet, friction_eps: float = 0.01, design=None):
     """The paper's baseline on the identification set (OLS, tanh friction); ``design``: its
     design's chunks already built (:func:`baseline_design`)."""
@@ -44,7 +49,7 @@ def baseline_design(spec, data: GapSet, friction_eps: float = 0.01) -> list | No
 
     model = ModelConfig(friction_eps=friction_eps)
     p = data.prepared
-    if len(p) * 6 * len(column_names(spec, model)) * 8 > DESIGN_CACHE_BYTES:
+    if not design_fits_cache(len(p), len(column_names(spec, model))):
         return None
     parts = list(design_chunks(spec, model, p.q, p.qd, p.qdd, p.segment, p.t, CHUNK_SAMPLES))
     for _, _, blocks in parts:
@@ -126,7 +131,7 @@ class SetContext:
     def keeps_design(self) -> bool:
         """Whether derived arrays are kept between passes: during a diagnosis, on a set whose
         design takes at most :data:`DESIGN_CACHE_BYTES`."""
-        return bool(self.cache.get("keep_design")) and self.n * 6 * self.n_params * 8 <= DESIGN_CACHE_BYTES
+        return bool(self.cache.get("keep_design")) and design_fits_cache(self.n, self.n_params)
 
     def design_product(self, g: np.ndarray) -> np.ndarray:
         """(N, 6) W·g for parameter-space vector(s) ``g`` (p,)."""
