@@ -282,7 +282,7 @@ def unrealisable_chosen(result, sim, spec) -> list[Candidate]:
     links = set(unrealisable_links(sim, spec, corrections(result)))
     if result.model.fmt in EXPRESSIBLE:
         links |= set(unrealisable_links(sim, spec, corrections(result, expressible_fit(result)[0])))
-    return [c for c in chosen if c.effect in ("rigid_body", "link_inertia") and c.joint in links]
+    return [c for c in chosen if c.effect in LINK_EFFECTS and c.joint in links]
 
 
 def corrections(result, candidates=None) -> dict:
