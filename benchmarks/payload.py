@@ -62,23 +62,27 @@ def _effects(path: Path, extra: list[dict]) -> Path:
 
 def _inertia_sigma(spec, arm_path: Path, logs: list[Path], tare_logs: list[Path], true_i: np.ndarray) -> dict:
     """The case refit with the inertia kept free (its tolerance rule off): the largest σ of the
-    inertia entries, as a multiple of the rule's 15 % of the true mean principal inertia."""
+    inertia entries, as a multiple of the rule's tolerance at the true inertia (15 % of the
+    smallest principal inertia over ``INERTIA_SIGMAS``)."""
     import urident.ident.payload as payload_module
     from urident.ident import load_params, predict_recordings
     from urident.logs import load_log
 
     arm = load_params(arm_path)
-    tare = predict_recordings(arm, [load_log(p) for p in tare_logs], spec).data if tare_logs else None
+    tare_runs, runs = [load_log(p) for p in tare_logs], [load_log(p) for p in logs]
+    tare = payload_module.since_first_row(predict_recordings(arm, tare_runs, spec), tare_runs) if tare_logs else None
+    data = predict_recordings(arm, runs, spec)
+    data = payload_module.since_first_row(data, runs) if tare_logs else data.data
     saved = dict(payload_module.TOLERANCES)
     payload_module.TOLERANCES.update(inertia_rel=np.inf, inertia_abs=np.inf)   # the σ rule off
     try:
-        est = payload_module.estimate_payload(arm, spec, predict_recordings(arm, [load_log(p) for p in logs], spec).data,
-                                              unloaded=tare)
+        est = payload_module.estimate_payload(arm, spec, data, unloaded=tare)
     finally:
         payload_module.TOLERANCES.update(saved)
     sigma = float(np.nanmax(np.array(est.ols.sigma["inertia_kg_m2"], dtype=float)))
     free = np.linalg.eigvalsh(est.ols.inertia_kg_m2)
-    return {"inertia_sigma_kg_m2": sigma, "inertia_sigma_ratio": sigma / (0.15 * true_i.mean()),
+    rule = payload_module.TOLERANCES["inertia_rel"] * true_i.min() / payload_module.INERTIA_SIGMAS
+    return {"inertia_sigma_kg_m2": sigma, "inertia_sigma_ratio": sigma / rule,
             "free_principal_err_pct": [float(v) for v in 100 * (free / true_i - 1)]}
 
 
@@ -164,7 +168,7 @@ def main() -> None:
                          if not inertia_ok else "")
                       + (f" ({', '.join(f'{v:+.0f}' for v in case['principal_inertia_err_pct'])} %)" if inertia_ok else "")
                       + (f"; free inertia: σ {case['inertia_sigma_kg_m2']:.2e} kg·m² = {case['inertia_sigma_ratio']:.2f} × "
-                         f"the 15 % rule, principal {', '.join(f'{v:+.0f}' for v in case['free_principal_err_pct'])} %"
+                         f"the rule, principal {', '.join(f'{v:+.0f}' for v in case['free_principal_err_pct'])} %"
                          if args.inertia_sigma else ""),
                       flush=True)
             if args.no_gains:

@@ -271,3 +271,73 @@ def test_a_tare_from_rows_of_another_log_must_be_the_same_motion(runs, capsys):
                     "tolerance 0.05 rad")
     _one_line_exit2(capsys, ["payload", str(runs / "load.csv"), "--params", str(runs / "arm_params.yaml"),
                              "--unloaded-rows", "1-100", "--out", str(runs / "x.yaml")], "--unloaded-rows needs")
+
+
+def _pieces(t, q, tau, segment=None):
+    from urident.ident.preprocess import Prepared
+
+    z = np.zeros_like(q)
+    return Prepared(t, q, z, z, tau, np.ones(6), segment=segment)
+
+
+def test_tare_is_laid_over_the_loaded_run_at_the_same_point_of_the_motion():
+    """``tare_at``: the tare's residual is read where the tare was at the loaded sample's joint
+    positions, its time offset found (here 1.25 periods late); a tare of another motion covers
+    nothing; two tares are averaged and their sharing between loaded runs is counted."""
+    from urident.ident.payload import tare_at
+
+    dt = 0.002
+    t = np.arange(2000) * dt
+    motion = lambda s: np.column_stack([0.3 * np.sin(2.0 * s + j) for j in range(6)])  # noqa: E731
+    loaded = _pieces(t, motion(t), np.zeros((len(t), 6)))
+    late = t + 1.25 * dt                                  # the tare's recording started later
+    tare = _pieces(t, motion(late), np.zeros((len(t), 6)))
+    residual = np.column_stack([np.cos(3.0 * late + j) for j in range(6)])  # a function of the motion
+    mean, count, shared = tare_at(loaded, tare, residual)
+    inside = count > 0
+    assert inside.mean() > 0.99 and np.all(count[inside] == 1) and np.all(shared[inside] == 1)
+    truth = np.column_stack([np.cos(3.0 * t + j) for j in range(6)])
+    assert np.max(np.abs(mean[inside] - truth[inside])) < 1e-4     # without the offset: ~7e-3
+    other = _pieces(t, motion(t) + 0.2, np.zeros((len(t), 6)))
+    assert not np.any(tare_at(loaded, other, residual)[1])
+    two = _pieces(np.r_[t, t], np.vstack([motion(late), motion(late)]), np.zeros((2 * len(t), 6)),
+                  np.r_[np.zeros(len(t), int), np.ones(len(t), int)])
+    mean2, count2, _ = tare_at(loaded, two, np.vstack([residual, residual + 1.0]))
+    assert np.max(count2) == 2 and np.allclose(mean2[count2 == 2], (mean + 0.5)[count2 == 2], atol=1e-4)
+    both = _pieces(np.r_[t, t], np.vstack([motion(t), motion(t)]), np.zeros((2 * len(t), 6)),
+                   np.r_[np.zeros(len(t), int), np.ones(len(t), int)])
+    assert np.max(tare_at(both, tare, residual)[2]) == 2         # one tare under two loaded runs
+
+
+def test_a_shared_tare_widens_sigma(runs):
+    """Two loaded runs over one tare share its noise: σ is scaled by √((1 + 2)/(1 + 1)) (one
+    loaded run per tare: 1), so twice the loaded data with the same tare does not halve the
+    variance."""
+    from urident.ident import load_params, predict_recordings
+    from urident.ident.payload import estimate_payload, since_first_row
+    from urident.logs import load_log
+
+    arm = load_params(runs / "arm_params.yaml")
+    spec = load_robot("ur5")
+    tare_runs = [load_log(runs / "arm.csv")]
+    tare = since_first_row(predict_recordings(arm, tare_runs, spec), tare_runs)
+    one = [load_log(runs / "load_ident.csv")]
+    est1 = estimate_payload(arm, spec, since_first_row(predict_recordings(arm, one, spec), one), unloaded=tare)
+    assert est1.ols.info["tare_sigma_scale"] == pytest.approx(1.0)
+    assert est1.ols.info["tared_samples"] == est1.n_samples
+    effects = runs / "effects_load.yaml"
+    assert main(["simulate", "--trajectory", str(ROOT / "experiments/ur5_ident.yaml"), "--out",
+                 str(runs / "load_ident4.csv"), "--effects", str(effects), "--seed", "4", "--overwrite"]) == 0
+    two = [*one, load_log(runs / "load_ident4.csv")]   # its own noise
+    est2 = estimate_payload(arm, spec, since_first_row(predict_recordings(arm, two, spec), two), unloaded=tare)
+    assert est2.ols.info["tare_sigma_scale"] == pytest.approx(np.sqrt(1.5))
+    assert est2.ols.sigma["mass_kg"] > est1.ols.sigma["mass_kg"] / np.sqrt(2)
+    assert abs(est2.ols.mass_kg - MASS) < 0.02 * MASS
+
+
+def test_every_loaded_log_needs_its_tare(runs, capsys):
+    """The tare is subtracted sample by sample, so a loaded log whose motion no ``--unloaded`` log
+    runs is refused, naming it (one line, exit 2)."""
+    _one_line_exit2(capsys, ["payload", str(runs / "load_ident.csv"), str(runs / "load.csv"), "--params",
+                             str(runs / "arm_params.yaml"), "--unloaded", str(runs / "arm.csv"),
+                             "--out", str(runs / "x.yaml")], f"{runs / 'load.csv'}: no tare runs its motion")

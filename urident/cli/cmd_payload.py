@@ -64,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
     from urident.errors import ConfigError
     from urident.ident import load_params, predict_recordings
     from urident.ident.identify import check_compatible
-    from urident.ident.payload import check_same_motion, check_wrist_motion, estimate_payload
+    from urident.ident.payload import check_same_motion, check_wrist_motion, estimate_payload, since_first_row
     from urident.ident.payload_file import save_payload
     from urident.logs import load_log_from_args
     from urident.model import load_robot
@@ -89,8 +89,9 @@ def run(args: argparse.Namespace) -> int:
             check_wrist_motion(rec.q, "unloaded logs")
         check_same_motion([(str(p), r.t, r.q) for p, r in zip(args.logs, recordings)],
                           [(f"--unloaded {p}{shown_rows}", r.t, r.q) for p, r in zip(args.unloaded, tare)])
-        unloaded = predict_recordings(arm, tare, spec, drive_gains=args.drive_gains or None).data
-    est = estimate_payload(arm, spec, prediction.data, args.mass_range, unloaded=unloaded)
+        unloaded = since_first_row(predict_recordings(arm, tare, spec, drive_gains=args.drive_gains or None), tare)
+    data = since_first_row(prediction, recordings) if unloaded is not None else prediction.data
+    est = estimate_payload(arm, spec, data, args.mass_range, unloaded=unloaded)
     gains = prediction.data.drive_gains
     fit = {"n_samples": est.n_samples, "e_n_arm_alone": float(est.train_e_n_arm),
            "e_n_with_payload": float(est.train_e_n),
@@ -101,8 +102,9 @@ def run(args: argparse.Namespace) -> int:
     save_payload(est.consistent, args.out, overwrite=args.overwrite, fit=fit)
     fixed = [n for n in _fields() if n not in est.consistent.identifiable]
     lines = [f"payload on {spec.name} from {len(args.logs)} log(s), {est.n_samples} samples, arm {args.params}"
-             + (f", tare: {len(args.unloaded)} unloaded log(s) of {len(unloaded)} samples (the arm's own "
-                "last-body, friction and offset errors removed)" if unloaded is not None else ""),
+             + (f", tare: {len(args.unloaded)} unloaded log(s) of {len(unloaded)} samples, subtracted sample by "
+                f"sample from {est.ols.info['tared_samples']} loaded samples (every error of the arm model on "
+                "that motion removed)" if unloaded is not None else ""),
              f"  least squares:        {est.ols.describe()}",
              f"  physically consistent: {est.consistent.describe()}",
              f"  sigma: mass {est.ols.sigma['mass_kg']:.4f} kg, centre of mass "

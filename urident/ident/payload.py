@@ -24,7 +24,7 @@ the constraints need it).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -34,9 +34,12 @@ from urident.ident.estimate import joint_correlation_inflation
 #: Names of the flange-frame ten-vector φ_F (first moments m·c, inertia about the flange origin).
 PAYLOAD_FIELDS = ("m", "mcx", "mcy", "mcz", "Jxx", "Jyy", "Jzz", "Jyz", "Jxz", "Jxy")
 #: A parameter whose σ exceeds its tolerance is reported as not identifiable: mass 5 % (at least
-#: 0.02 kg), first moments 5 mm × mass, inertias 15 % of the mean principal inertia about the
-#: centre of mass (≥ 1e-4 kg·m²).
-TOLERANCES = {"mass_rel": 0.05, "mass_abs": 0.02, "com_m": 0.005, "inertia_rel": 0.15, "inertia_abs": 1e-4}
+#: 0.02 kg), first moments 5 mm × mass, inertias 15 % of the smallest principal inertia about the
+#: centre of mass at INERTIA_SIGMAS σ (≥ 1e-5 kg·m²), so an inertia reported is within 15 % on
+#: every principal axis with ~95 % confidence (at 1σ of the mean principal inertia a 2 kg tool's
+#: smallest one had missed by 33 %).
+TOLERANCES = {"mass_rel": 0.05, "mass_abs": 0.02, "com_m": 0.005, "inertia_rel": 0.15, "inertia_abs": 1e-5}
+INERTIA_SIGMAS = 2.0
 #: Structural rank threshold on the column-normalised regressor (sine to the span of the others).
 RANK_TOL = 1e-3
 #: |q| range [rad] below which a wrist joint counts as not moving.
@@ -46,6 +49,9 @@ MIN_WRIST_RANGE_RAD = 0.02
 #: real UR10e load/unload pair, aligned rows: 0.025 rad; one 10 ms row off at 1 rad/s: +0.01 rad).
 TARE_POSITION_TOL_RAD = 0.05
 TARE_SPAN_TOL = 0.05
+#: A tare is laid over a loaded log at the time offset (within ± this many sample periods, in
+#: quarter periods) that matches their joint positions best: logs started by hand are not in step.
+TARE_SHIFT_PERIODS = 3
 
 
 class PayloadError(ConfigError):
@@ -207,20 +213,34 @@ def check_wrist_motion(q: np.ndarray, where: str = "logs") -> None:
 
 
 def check_same_motion(loaded, tare) -> None:
-    """PayloadError (one line) unless every tare run matches one of the loaded runs (module
-    constants ``TARE_*``). ``loaded``, ``tare``: sequences of (label, t (N,), q (N, 6))."""
+    """PayloadError (one line) unless every tare run matches one of the loaded runs and every
+    loaded run has a tare (module constants ``TARE_*``): the tare is subtracted sample by sample.
+    ``loaded``, ``tare``: sequences of (label, t (N,), q (N, 6))."""
     for label, tu, qu in tare:
-        closest = None
-        for other, tl, ql in loaded:
-            problem = _motion_difference(np.asarray(tl, float), np.asarray(ql, float),
-                                         np.asarray(tu, float), np.asarray(qu, float))
-            if problem is None:
-                break
-            closest = closest if closest is not None and closest[0] <= problem[0] else (*problem, other)
-        else:
+        closest = _closest_motion(loaded, tu, qu)
+        if closest is not None:
             _, text, other = closest
             raise PayloadError(f"{label}: not the same motion as the loaded log {other}: {text}: a tare "
                                f"must run the same trajectory over the same rows (--unloaded-rows)")
+    for label, tl, ql in loaded:
+        closest = _closest_motion(tare, tl, ql, loaded_first=False)
+        if closest is not None:
+            _, text, other = closest
+            raise PayloadError(f"{label}: no tare runs its motion (closest, {other}: {text}): give each "
+                               f"loaded log an --unloaded log of the same trajectory, or leave it out")
+
+
+def _closest_motion(candidates, t, q, loaded_first: bool = True):
+    """None when (t, q) is the motion of one of ``candidates``, else (badness, reason, label) of the
+    closest; ``loaded_first``: the candidates are the loaded runs (else the tares)."""
+    closest = None
+    for other, tc, qc in candidates:
+        tc, qc, tx, qx = np.asarray(tc, float), np.asarray(qc, float), np.asarray(t, float), np.asarray(q, float)
+        problem = _motion_difference(tc, qc, tx, qx) if loaded_first else _motion_difference(tx, qx, tc, qc)
+        if problem is None:
+            return None
+        closest = closest if closest is not None and closest[0] <= problem[0] else (*problem, other)
+    return closest
 
 
 def _motion_difference(tl, ql, tu, qu):
@@ -240,6 +260,61 @@ def _motion_difference(tl, ql, tu, qu):
                                f"into the rows (tolerance {TARE_POSITION_TOL_RAD:g} rad)")
 
 
+def since_first_row(prediction, recordings):
+    """``prediction``'s data with each sample's time counted from its log's first row, the time
+    on which :func:`estimate_payload` lays a tare over a loaded run (as :func:`check_same_motion`)."""
+    data = prediction.data
+    pieces = prediction.pieces or tuple((k, 0) for k in range(len(recordings)))
+    t0 = np.array([float(recordings[k].t[0]) for k, _ in pieces])
+    return replace(data, t=data.t - t0[data.segment])
+
+
+def _tare_shift(tl, ql, tu, qu) -> float | None:
+    """The offset s [s] at which the tare (tu, qu) follows (tl, ql) best, q_u(t + s) ≈ q_l(t), over
+    ± :data:`TARE_SHIFT_PERIODS`; None when no offset overlaps half the loaded piece."""
+    period = float(np.median(np.diff(tl))) if len(tl) > 1 else 0.0
+    best, best_cost = None, np.inf
+    for s in np.arange(-4 * TARE_SHIFT_PERIODS, 4 * TARE_SHIFT_PERIODS + 1) * period / 4:
+        inside = (tl + s >= tu[0]) & (tl + s <= tu[-1])
+        if inside.sum() < max(len(tl) // 2, 2):
+            continue
+        cost = sum(float(np.mean((np.interp(tl[inside] + s, tu, qu[:, j]) - ql[inside, j]) ** 2))
+                   for j in range(6))
+        if cost < best_cost:
+            best, best_cost = float(s), cost
+    return best
+
+
+def tare_at(data, unloaded, residual_u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(N, 6) the mean over the tare runs of their residual ``residual_u`` at each loaded sample's
+    point of the motion, (N,) how many tares cover it, and (N,) how many loaded pieces those tares
+    cover on average (a tare shared by several loaded runs correlates their errors). A tare piece
+    covers a loaded piece when, at its best time offset (:func:`_tare_shift`; times from each
+    log's first row, :func:`since_first_row`), every joint is within :data:`TARE_POSITION_TOL_RAD`."""
+    loaded_pieces = [np.flatnonzero(data.segment == s) for s in np.unique(data.segment)]
+    tare_pieces = [np.flatnonzero(unloaded.segment == s) for s in np.unique(unloaded.segment)]
+    matches = []   # (loaded piece, tare piece, loaded samples covered, tare residual there)
+    for a, i in enumerate(loaded_pieces):
+        tl, ql = data.t[i], data.q[i]
+        for b, j in enumerate(tare_pieces):
+            tu, qu = unloaded.t[j], unloaded.q[j]
+            shift = _tare_shift(tl, ql, tu, qu)
+            if shift is None:
+                continue
+            inside = (tl + shift >= tu[0]) & (tl + shift <= tu[-1])
+            at = lambda x: np.column_stack([np.interp(tl[inside] + shift, tu, x[:, c]) for c in range(6)])  # noqa: E731
+            if np.max(np.abs(at(qu) - ql[inside])) <= TARE_POSITION_TOL_RAD:
+                matches.append((a, b, i[inside], at(residual_u[j])))
+    uses = np.bincount([b for _, b, _, _ in matches], minlength=len(tare_pieces))
+    total, count, shared = np.zeros_like(data.tau), np.zeros(len(data)), np.zeros(len(data))
+    for _, b, rows, r in matches:
+        total[rows] += r
+        count[rows] += 1
+        shared[rows] += uses[b]
+    covered = np.maximum(count, 1)
+    return total / covered[:, None], count, shared / covered
+
+
 @dataclass(frozen=True)
 class PayloadEstimate:
     ols: Payload
@@ -256,11 +331,11 @@ def _tolerances(phi: np.ndarray) -> np.ndarray:
     c = phi[1:4] / m
     # about the centre of mass: the flange-origin inertia's m·c² part is the first moments' business
     ic = _tensor(phi[4:10]) - m * (c @ c * np.eye(3) - np.outer(c, c))
-    mean_principal = abs(np.trace(ic)) / 3
+    smallest = max(float(np.linalg.eigvalsh(ic)[0]), 0.0)
     tol = np.empty(10)
     tol[0] = max(TOLERANCES["mass_rel"] * m, TOLERANCES["mass_abs"])
     tol[1:4] = TOLERANCES["com_m"] * m
-    tol[4:10] = max(TOLERANCES["inertia_rel"] * mean_principal, TOLERANCES["inertia_abs"])
+    tol[4:10] = max(TOLERANCES["inertia_rel"] * smallest / INERTIA_SIGMAS, TOLERANCES["inertia_abs"])
     return tol
 
 
@@ -388,7 +463,7 @@ def _induced(data, link: np.ndarray, tau_p: np.ndarray) -> np.ndarray:
 
 
 def _select(a_fit: np.ndarray, y_fit: np.ndarray, nuisance: np.ndarray | None, n_rows: int,
-            inertia: bool = True):
+            inertia: bool = True, sigma_scale: float = 1.0):
     """Per-joint weights from a first fit, then least squares with the nuisance columns projected
     out, dropping the worst-determined parameter until every one left is within its tolerance
     (``inertia`` False: the six inertias fixed from the start): (φ, σ, free, weights, weighted and
@@ -415,6 +490,7 @@ def _select(a_fit: np.ndarray, y_fit: np.ndarray, nuisance: np.ndarray | None, n
     for _ in range(20):  # drop the worst-determined parameter until all are within tolerance
         for _ in range(3):   # fixed inertias follow the estimated mass and centre of mass
             phi, sigma = _ls(aw, yw, free, _fixed_values(phi, free))
+        sigma = sigma * sigma_scale
         ratio = np.where(free, sigma / _tolerances(phi), 0.0)
         ratio[0] = 0.0 if sigma[0] <= _tolerances(phi)[0] else ratio[0]
         worst = int(np.argmax(ratio))
@@ -427,10 +503,9 @@ def _select(a_fit: np.ndarray, y_fit: np.ndarray, nuisance: np.ndarray | None, n
     return phi, sigma, free, weights, aw, yw
 
 
-def _nuisance(spec, data, blocks: np.ndarray) -> np.ndarray:
-    """(N, 6, 28) columns of what the arm model gets wrong on a motion whether or not the tool is
-    mounted: its own last body (ten parameters, the payload's columns: a 'phantom payload') and
-    each joint's viscous, Coulomb and constant torque."""
+def _friction_columns(data) -> np.ndarray:
+    """(N·6, 18) each joint's viscous, Coulomb and constant torque: what may differ between a
+    loaded run and its tare besides the tool (the joints' temperature, the current offsets)."""
     from urident.model.regressor import DEFAULT_FRICTION_EPS
 
     n = len(data)
@@ -439,7 +514,7 @@ def _nuisance(spec, data, blocks: np.ndarray) -> np.ndarray:
     friction[:, joints, joints] = data.qd
     friction[:, joints, 6 + joints] = np.tanh(data.qd / DEFAULT_FRICTION_EPS)
     friction[:, joints, 12 + joints] = 1.0
-    return np.concatenate([payload_regressor(spec, blocks), friction], axis=2)
+    return friction.reshape(-1, 18)
 
 
 def _project_out(n: np.ndarray, *arrays: np.ndarray) -> list[np.ndarray]:
@@ -457,10 +532,14 @@ def estimate_payload(params, spec, data, mass_range=None, regularisation: float 
     """The payload from prepared data ``data`` (:class:`urident.ident.Prepared`, torques from the
     drive gains chosen) with the arm's ``params`` (:class:`IdentifiedModel`) fixed (module doc).
 
-    ``unloaded``: prepared runs of the same motion without the tool (a tare). The arm model's
-    own errors on that motion (its last body's parameters, which add to the payload's exactly,
-    and each joint's friction and offset, :func:`_nuisance`) are then fit jointly on both and
-    removed: what is left in the loaded run is the tool's alone. Without a tare the inertia is
+    ``unloaded``: prepared runs of the same motion without the tool (a tare), times from each
+    log's first row (:func:`since_first_row`). The fit is then on the difference, sample by
+    sample, of the loaded run's residual and the tares' mean residual at the same point of the
+    motion (:func:`tare_at`): every error the arm model makes on that motion (its last body's
+    parameters, which add to the payload's exactly, friction forms it lacks, the joints'
+    elasticity, a wrong rotor inertia) is in both and cancels, and the difference is sensor noise;
+    each joint's viscous, Coulomb and constant torque stay free (temperature and offsets may
+    differ between the runs). Loaded samples no tare covers are left out. Without a tare the inertia is
     never reported identifiable: the arm's own last-body inertia error, which no σ sees, is of the
     order of a tool's (0.03 kg·m² on the simulated UR10e, README); its columns are then fit as
     nuisance (so that error does not bias the mass and centre of mass) and the inertia reported is
@@ -483,32 +562,44 @@ def estimate_payload(params, spec, data, mass_range=None, regularisation: float 
     n = len(data)
     if 6 * n <= 20:
         raise PayloadError(f"{n} samples are too few to identify a payload")
-    a_fit, y_fit, nuisance, n_rows = a, y, None, n
+    rows, a_fit, y_fit, nuisance, tared, sigma_scale = slice(None), a, y, None, 0, 1.0
     if unloaded is not None:
         check_wrist_motion(unloaded.q, "unloaded logs")
-        blocks_u = regressor_blocks(spec, unloaded.q, unloaded.qd, unloaded.qdd)
-        y_u = (unloaded.tau - predict_prepared(params, spec, unloaded)).reshape(-1)
-        a_fit = np.vstack([a, np.zeros((len(y_u), 10))])
-        y_fit = np.concatenate([y, y_u])
-        nuisance = np.vstack([_nuisance(spec, data, blocks).reshape(-1, 28),
-                              _nuisance(spec, unloaded, blocks_u).reshape(-1, 28)])
-        n_rows = n + len(unloaded)
+        tare, count, shared = tare_at(data, unloaded, unloaded.tau - predict_prepared(params, spec, unloaded))
+        keep = count > 0
+        tared = int(keep.sum())
+        if 6 * tared <= 20:
+            raise PayloadError("no loaded sample has a tare of the same motion (--unloaded: the same "
+                               "trajectory, joints within "
+                               f"{TARE_POSITION_TOL_RAD:g} rad)")
+        # noise of a difference: the loaded run's plus the mean of `count` tares', whose share is
+        # common to the `shared` loaded runs that use them; the residual shows each row's own
+        # variance (1 + 1/count), the estimate's is as if (1 + shared/count): σ scaled by the ratio
+        c, sh = count[keep], shared[keep]
+        w = np.repeat(1.0 / np.sqrt(1.0 + sh / c), 6)
+        sigma_scale = float(np.sqrt(np.mean((1.0 + sh / c) / (1.0 + 1.0 / c))))
+        rows = np.repeat(keep, 6)
+        a_fit = a[rows] * w[:, None]
+        y_fit = (residual - tare)[keep].reshape(-1) * w
+        nuisance = _friction_columns(data.select(keep)) * w[:, None]
+    n_rows = len(y_fit) // 6
     link = nominal_link_torque(spec, blocks)
     phi = None
     for _ in range(INDUCED_PASSES):   # the payload's side effects follow its estimate
-        extra = None if phi is None else _induced(data, link, (a @ phi).reshape(-1, 6))
+        extra = None if phi is None else _induced(data, link, (a @ phi).reshape(-1, 6))[rows]
         if extra is not None and unloaded is not None:
-            extra = np.vstack([extra, np.zeros((6 * len(unloaded), extra.shape[1]))])
+            extra = extra * w[:, None]
         # without a tare the inertia columns stay in the fit (they absorb the arm's own last-body
         # inertia error, which would bias the mass and centre of mass) but are never reported
         own = None if unloaded is not None else a[:, 4:10]
         parts = [x for x in (nuisance, extra, own) if x is not None]
         phi, sigma, free, weights, aw, yw = _select(a_fit, y_fit, np.hstack(parts) if parts else None, n_rows,
-                                                    inertia=unloaded is not None)
+                                                    inertia=unloaded is not None, sigma_scale=sigma_scale)
     ew = aw @ phi - yw
     noise_var = max(float(ew @ ew) / max(len(yw) - int(free.sum()), 1), 1e-300)
     identifiable = tuple(name for name, f in zip(PAYLOAD_FIELDS, free) if f)
-    info = {"weights": [float(w) for w in weights], "unloaded_samples": 0 if unloaded is None else len(unloaded)}
+    info = {"weights": [float(v) for v in weights], "unloaded_samples": 0 if unloaded is None else len(unloaded),
+            "tared_samples": tared, "tare_sigma_scale": sigma_scale}
     ols = from_flange_vector(spec.name, phi, sigma=_sigma_dict(phi, sigma),
                              identifiable=identifiable, method="ols", info=info)
     reg = DEFAULT_REGULARISATION if regularisation is None else regularisation
