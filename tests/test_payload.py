@@ -341,3 +341,22 @@ def test_every_loaded_log_needs_its_tare(runs, capsys):
     _one_line_exit2(capsys, ["payload", str(runs / "load_ident.csv"), str(runs / "load.csv"), "--params",
                              str(runs / "arm_params.yaml"), "--unloaded", str(runs / "arm.csv"),
                              "--out", str(runs / "x.yaml")], f"{runs / 'load.csv'}: no tare runs its motion")
+
+
+def test_the_inertia_is_reported_only_at_two_sigma_of_its_smallest_principal_axis():
+    """The inertia entries' tolerance is 15 % of the smallest principal inertia about the centre of
+    mass over 2 (an inertia reported is within 15 % on every axis at 2σ), not of the mean."""
+    from urident.ident.payload import INERTIA_SIGMAS, TOLERANCES, _tolerances
+
+    m, c = 2.0, np.array([0.02, -0.01, 0.07])
+    ic = np.diag([0.004, 0.01, 0.013])
+    j = ic + m * (c @ c * np.eye(3) - np.outer(c, c))      # about the flange origin
+    phi = np.r_[m, m * c, j[0, 0], j[1, 1], j[2, 2], j[1, 2], j[0, 2], j[0, 1]]
+    tol = _tolerances(phi)
+    assert INERTIA_SIGMAS == 2.0
+    assert tol[4:10] == pytest.approx(np.full(6, TOLERANCES["inertia_rel"] * 0.004 / 2))
+    assert tol[0] == pytest.approx(0.05 * m) and tol[1:4] == pytest.approx(np.full(3, 0.005 * m))
+    point = phi.copy()
+    point[4:10] = np.r_[np.diag(m * (c @ c * np.eye(3) - np.outer(c, c))), 0, 0, 0]
+    point[7:10] = [-m * c[1] * c[2], -m * c[0] * c[2], -m * c[0] * c[1]]
+    assert _tolerances(point)[4] == pytest.approx(TOLERANCES["inertia_abs"])   # a point mass: the floor

@@ -36,8 +36,7 @@ PAYLOAD_FIELDS = ("m", "mcx", "mcy", "mcz", "Jxx", "Jyy", "Jzz", "Jyz", "Jxz", "
 #: A parameter whose σ exceeds its tolerance is reported as not identifiable: mass 5 % (at least
 #: 0.02 kg), first moments 5 mm × mass, inertias 15 % of the smallest principal inertia about the
 #: centre of mass at INERTIA_SIGMAS σ (≥ 1e-5 kg·m²), so an inertia reported is within 15 % on
-#: every principal axis with ~95 % confidence (at 1σ of the mean principal inertia a 2 kg tool's
-#: smallest one had missed by 33 %).
+#: every principal axis with ~95 % confidence.
 TOLERANCES = {"mass_rel": 0.05, "mass_abs": 0.02, "com_m": 0.005, "inertia_rel": 0.15, "inertia_abs": 1e-5}
 INERTIA_SIGMAS = 2.0
 #: Structural rank threshold on the column-normalised regressor (sine to the span of the others).
@@ -335,7 +334,8 @@ def _tolerances(phi: np.ndarray) -> np.ndarray:
     tol = np.empty(10)
     tol[0] = max(TOLERANCES["mass_rel"] * m, TOLERANCES["mass_abs"])
     tol[1:4] = TOLERANCES["com_m"] * m
-    tol[4:10] = max(TOLERANCES["inertia_rel"] * smallest / INERTIA_SIGMAS, TOLERANCES["inertia_abs"])
+    relative = TOLERANCES["inertia_rel"] * smallest / INERTIA_SIGMAS if smallest > 0 else 0.0
+    tol[4:10] = max(relative, TOLERANCES["inertia_abs"])
     return tol
 
 
