@@ -263,8 +263,7 @@ def since_first_row(prediction, recordings):
     """``prediction``'s data with each sample's time counted from its log's first row, the time
     on which :func:`estimate_payload` lays a tare over a loaded run (as :func:`check_same_motion`)."""
     data = prediction.data
-    pieces = prediction.pieces or tuple((k, 0) for k in range(len(recordings)))
-    t0 = np.array([float(recordings[k].t[0]) for k, _ in pieces])
+    t0 = np.array([float(recordings[k].t[0]) for k, _ in prediction.recording_pieces()])
     return replace(data, t=data.t - t0[data.segment])
 
 

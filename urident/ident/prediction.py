@@ -82,13 +82,17 @@ class Prediction:
         return ValidationResult(self.params.method, self.data.t, self.data.tau, self.tau_predicted,
                                 e_n, rms, rre, self.data.provenance)
 
+    def recording_pieces(self) -> tuple[tuple[int, int], ...]:
+        """Per segment of ``data``: (recording index, first sample); one piece per recording when
+        the prediction was not built by :func:`predict_recordings`."""
+        return self.pieces or tuple((j, 0) for j in range(len(self.data.provenance)))
+
     def sample_index(self, k: int = 0) -> np.ndarray:
         """Indices into the ``k``-th loaded recording of its samples in ``data`` (gap-free pieces
         in order)."""
         step = int(self.config.decimate)
-        pieces = self.pieces or tuple((j, 0) for j in range(len(self.data.provenance)))
         index = [np.arange(offset + prov.samples_used[0], offset + prov.samples_used[1], step)
-                 for (j, offset), prov in zip(pieces, self.data.provenance) if j == k]
+                 for (j, offset), prov in zip(self.recording_pieces(), self.data.provenance) if j == k]
         return np.concatenate(index) if index else np.zeros(0, dtype=int)
 
 
