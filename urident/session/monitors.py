@@ -36,6 +36,14 @@ _SAFETY_REASONS = (
 RUNTIME_PLAYING = 2
 ROBOT_MODE_RUNNING = 7
 
+# runtime_state and safety_mode values (UR RTDE guide), for messages
+RUNTIME_STATE_NAMES = {0: "stopping", 1: "stopped", 2: "playing", 3: "pausing", 4: "paused",
+                       5: "resuming"}
+SAFETY_MODE_NAMES = {1: "normal", 2: "reduced", 3: "protective stop", 4: "recovery",
+                     5: "safeguard stop", 6: "system emergency stop", 7: "robot emergency stop",
+                     8: "violation", 9: "fault", 10: "validate joint id", 11: "undefined",
+                     12: "automatic mode safeguard stop", 13: "three-position enabling stop"}
+
 
 def safety_problem(safety_status_bits: int) -> str | None:
     """The first abnormal condition in ``safety_status_bits``, or None."""

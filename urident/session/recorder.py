@@ -26,6 +26,7 @@ from typing import Any
 
 from urident.errors import ConnectionLost
 from urident.rtde import protocol as rp
+from urident.session.handover import generation, hold_watch
 
 RTDE_PORT = 30004
 READ_TIMEOUT_S = 2.5
@@ -189,6 +190,9 @@ def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, pare
     except (OSError, rp.ProtocolError, ConnectionLost) as exc:
         conn.send(("error", str(exc)))
         return
+    # Held until the watcher forked below has ended: the next run waits for it (handover).
+    watch_fd = hold_watch(host)
+    since = generation(host)
     known = {f.name: f for f in LOG_FIELDS + OPTIONAL_FIELDS}
     fields = [known[n] for n in names if n in recipe.names]
     writer = LogWriter(out, fields=fields, metadata=metadata, overwrite=True)
@@ -301,10 +305,13 @@ def _record_main(host: str, rate_hz: float, out: str, metadata: dict, conn, pare
             pass
     if not orphaned and ready_sent and os.fork() == 0:
         try:
-            # Keep only the terminal: an inherited copy of multiprocessing's sentinel pipe would
-            # make the session's join() wait for this watcher instead of the recorder.
-            os.closerange(3, os.sysconf("SC_OPEN_MAX"))
-            _watch_program(host, parent_pid, out, announce)
+            # Keep only the terminal and the watch lock: an inherited copy of multiprocessing's
+            # sentinel pipe would make the session's join() wait for this watcher instead of
+            # the recorder.
+            keep = watch_fd if watch_fd is not None else os.sysconf("SC_OPEN_MAX")
+            os.closerange(3, keep)
+            os.closerange(keep + 1, os.sysconf("SC_OPEN_MAX"))
+            _watch_program(host, parent_pid, out, announce, since)
         finally:
             os._exit(0)
 
@@ -316,10 +323,13 @@ def _say(line: str) -> None:
         pass
 
 
-def _watch_program(host: str, parent_pid: int, out: str, announce: bool = True) -> None:
+def _watch_program(host: str, parent_pid: int, out: str, announce: bool = True,
+                   since_generation: int | None = None) -> None:
     """After the session process exited (its ur_rtde clients with it), the controller's program
     must be stopped and stay so; what had to be done is added to the sidecar. A session process
-    that lives on (the Python API, ``urident demo``) may start its next run: nothing is done then."""
+    that lives on (the Python API) may start its next run: nothing is done then, and the watch
+    ends as soon as that run announces itself (``since_generation``, :mod:`.handover`). A next run
+    waits for this watch to end, so a program stopped here is never another run's."""
     from urident.logs import read_sidecar, sidecar_path
     from urident.logs.sidecar import write_sidecar
     from urident.session.dashboard import ensure_stopped
@@ -327,6 +337,8 @@ def _watch_program(host: str, parent_pid: int, out: str, announce: bool = True) 
     deadline = time.monotonic() + WATCH_PARENT_S
     while _alive(parent_pid):
         if time.monotonic() > deadline:
+            return
+        if since_generation is not None and generation(host) != since_generation:
             return
         time.sleep(0.02)
     death = session_death(parent_pid)

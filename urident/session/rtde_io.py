@@ -14,6 +14,7 @@ import numpy as np
 
 from urident.errors import ConnectionLost, ControllerUnreachable, SafetyError
 from urident.session.dashboard import ensure_stopped
+from urident.session.monitors import safety_problem
 
 # ur_rtde clients whose connection broke: ur_rtde crashes (SIGSEGV) when such an object is sent
 # commands, disconnected or destroyed while its reconnect thread runs, so they are kept here for
@@ -214,6 +215,45 @@ class RobotLink:
         """(robot_mode, safety_mode, safety_status_bits)."""
         r = self.receive
         return int(r.getRobotMode()), int(r.getSafetyMode()), int(r.getSafetyStatusBits())
+
+    def controller_report(self) -> str:
+        """What the controller reports at this moment, for a message saying why it refused a
+        command: its program state (dashboard), runtime state, robot and safety mode and safety
+        bits (RTDE), and ur_rtde's asynchronous operation progress. Each part that cannot be read
+        says so; this never raises."""
+        from urident.session.dashboard import Dashboard
+        from urident.session.monitors import RUNTIME_STATE_NAMES, SAFETY_MODE_NAMES
+        from urident.session.preflight import ROBOT_MODE_NAMES
+
+        parts = []
+        try:
+            with Dashboard(self.host) as dashboard:
+                parts.append(f"program {dashboard.call('programState')}")
+        except (OSError, ConnectionError) as exc:
+            parts.append(f"program state unreadable ({exc})")
+        r = self.receive
+        try:
+            if r is None or not r.isConnected():
+                parts.append("RTDE state unreadable (not connected)")
+            else:
+                runtime, robot_mode = int(r.getRuntimeState()), int(r.getRobotMode())
+                safety_mode, bits = int(r.getSafetyMode()), int(r.getSafetyStatusBits())
+                parts.append(f"runtime state {RUNTIME_STATE_NAMES.get(runtime, '?')} ({runtime})")
+                parts.append(f"robot mode {ROBOT_MODE_NAMES.get(robot_mode, '?')} ({robot_mode})")
+                parts.append(f"safety mode {SAFETY_MODE_NAMES.get(safety_mode, '?')} ({safety_mode})")
+                parts.append(safety_problem(bits) or f"no safety stop bit set ({bits:#x})")
+        except RuntimeError as exc:
+            parts.append(f"RTDE state unreadable ({exc})")
+        try:
+            if self.control_connected():
+                progress = self.move_progress()  # ur_rtde: < 0 when no asynchronous move runs
+                parts.append(f"async operation progress {progress:g}" if progress >= 0
+                             else f"no async operation running ({progress:g})")
+            else:
+                parts.append("control connection closed")
+        except RuntimeError as exc:
+            parts.append(f"async operation progress unreadable ({exc})")
+        return "controller reported: " + ", ".join(parts)
 
     # ------------------------------------------------------------------ motion
     def move_joints(self, q: np.ndarray, speed: float, acceleration: float) -> bool:

@@ -280,8 +280,8 @@ def _approach(link: RobotLink, q_start: np.ndarray, config: ExperimentConfig,
     # Trapezoidal profile time, then a generous margin for a slower controller.
     deadline = time.monotonic() + 3.0 * (distance / speed + speed / acceleration) + 5.0
     if not link.move_joints(q_start, speed, acceleration):
-        raise SessionAborted("moveJ to the trajectory start was rejected by the controller: "
-                             "nothing moved")
+        raise SessionAborted(f"moveJ to the trajectory start was rejected by the controller "
+                             f"({link.controller_report()}): nothing moved")
     try:
         while True:
             time.sleep(APPROACH_POLL_S)
@@ -317,7 +317,7 @@ def _rejection_cause(link: RobotLink, period: float) -> str:
         if runtime_state != 2:
             return f"control program stopped, runtime_state={runtime_state}"
         time.sleep(period)
-    return "no reason reported"
+    return link.controller_report()
 
 
 RT_PRIORITY = 20  # above the simulated controller's 10, below kernel threads

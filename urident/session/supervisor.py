@@ -37,6 +37,7 @@ from typing import Callable
 
 from urident.errors import (Interrupted, SafetyError, SessionAborted, UridentError)
 from urident.session.dashboard import ensure_stopped
+from urident.session.handover import controller_turn
 from urident.session.recorder import process_death, signal_name
 from urident.session.runner import RunRequest, RunResult, SessionEvents, run_local
 
@@ -61,9 +62,10 @@ def run_session(request: RunRequest, say: Callable[[str], None] | None = None,
     once a run started and ended early. ``live`` stays in this process. With ``link`` (a
     :class:`urident.session.rtde_io.RobotLink` or a stand-in) the session runs here instead."""
     say = say or _print
-    if link is not None:
-        return run_local(request, say, confirm, live, link)
-    return _Supervisor(request, say, confirm, live).run()
+    with controller_turn(request.host, say):  # after the previous run's watch, never inside it
+        if link is not None:
+            return run_local(request, say, confirm, live, link)
+        return _Supervisor(request, say, confirm, live).run()
 
 
 def _print(line: str) -> None:
