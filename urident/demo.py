@@ -146,7 +146,7 @@ def run_demo(root: Path = Path("logs"), quick: bool = False, seed: int = 0,
     # collision-checked) approach at a moderate speed. Late control cycles, late samples and the
     # servo lag they add come from the host's load here (the controller is simulated on the same
     # cores), not from a robot at risk: the demo tolerates 0.5 s without a sample and 0.5 rad of
-    # tracking error (servoJ's lookahead alone lags 0.2 rad on the fastest joints of these runs).
+    # tracking error (the fastest joints of these runs lag about 0.2 rad on a busy host already).
     config.write_text("approach:\n  speed_rad_s: 0.6\n  acceleration_rad_s2: 1.0\n"
                       "  max_distance_rad: 3.2\nmonitors:\n  max_late_fraction: 0.5\n"
                       "  max_consecutive_late: 500\n  max_tracking_error_rad: 0.5\n"
