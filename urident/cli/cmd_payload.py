@@ -69,6 +69,9 @@ def run(args: argparse.Namespace) -> int:
     from urident.logs import load_log_from_args
     from urident.model import load_robot
 
+    options.distinct_outputs(("--out", args.out), ("--json-out", args.json_out),
+                             inputs=(("--params", args.params), *options.log_inputs("LOG", args.logs),
+                                     *options.log_inputs("--unloaded", args.unloaded)))
     options.output_path("--out", args.out, args.overwrite)
     options.output_path("--json-out", args.json_out, args.overwrite)
     arm = load_params(args.params)
