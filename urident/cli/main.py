@@ -6,6 +6,7 @@ import argparse
 import importlib
 import os
 import sys
+import warnings
 
 from urident import __version__
 from urident.cli.options import ArgumentParser
@@ -60,7 +61,10 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 1
     try:
-        return int(args.func(args) or 0)
+        with warnings.catch_warnings():
+            if not os.environ.get("URIDENT_DEBUG"):   # numpy's floating-point notes: urident's checks name bad values
+                warnings.simplefilter("ignore", RuntimeWarning)
+            return int(args.func(args) or 0)
     except UridentError as exc:
         print(f"urident: error: {exc}", file=sys.stderr)
         return exc.exit_code
