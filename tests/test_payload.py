@@ -252,7 +252,7 @@ def test_payload_with_a_tare_run_of_the_same_trajectory(runs, capsys):
     assert data["fit"]["unloaded_logs"] == [str(runs / "arm.csv")]
     _one_line_exit2(capsys, ["payload", str(runs / "load.csv"), "--params", str(runs / "arm_params.yaml"),
                              "--unloaded", str(runs / "still.csv"), "--out", str(runs / "x.yaml")],
-                    "unloaded logs: the wrist joints")
+                    f"--unloaded {runs / 'still.csv'}: the wrist joints")
 
 
 def test_a_tare_from_rows_of_another_log_must_be_the_same_motion(runs, capsys):

@@ -46,6 +46,32 @@ def check_output(path: str | Path, flag: str | None = None, overwrite: bool = Fa
     return path
 
 
+def check_distinct_outputs(outputs, inputs=()) -> None:
+    """:class:`OutputError` when two of ``outputs`` ((flag, path) pairs; None paths skipped) name one
+    file (the same path, or two names of one existing file), or one names an input (``inputs``,
+    the same pairs): one would replace the other. Checked before any work, with or without
+    ``--overwrite``."""
+    def same(a: Path, b: Path) -> bool:
+        if a.resolve() == b.resolve():
+            return True
+        return a.exists() and b.exists() and os.path.samefile(a, b)
+
+    ins = [(flag, Path(p)) for flag, p in inputs if p is not None]
+    seen: list[tuple[str, Path]] = []
+    for flag, path in outputs:
+        if path is None:
+            continue
+        path = Path(path)
+        for other_flag, other in ins:
+            if same(path, other):
+                raise OutputError(f"{_name(path, flag)}: is also the input {_name(other, other_flag)}; "
+                                  "refusing to replace an input")
+        for other_flag, other in seen:
+            if same(path, other):
+                raise OutputError(f"{_name(path, flag)}: also the {other_flag} output; give each output its own path")
+        seen.append((flag, path))
+
+
 def check_output_dir(path: str | Path, flag: str | None = None) -> Path:
     """A directory to write files into (created if missing): not a symbolic link, not a file."""
     path = Path(path)

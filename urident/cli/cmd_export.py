@@ -49,6 +49,9 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError("export: give --mjcf OUT.xml and/or --urdf OUT.urdf")
     if bool(args.params) == bool(args.nominal):
         raise ConfigError("export: give PARAMS.yaml or --nominal --robot R")
+    options.distinct_outputs(("--mjcf", args.mjcf), ("--urdf", args.urdf),
+                             inputs=(("PARAMS.yaml", args.params), ("--payload", args.payload),
+                                     *options.log_inputs("--valid", args.valid)))
     options.output_path("--mjcf", args.mjcf, args.overwrite)
     options.output_path("--urdf", args.urdf, args.overwrite)
     if args.nominal:

@@ -107,13 +107,24 @@ def run(args: argparse.Namespace) -> int:
 
     options.check_rerun_args(args)
     options.output_path("--json-out", args.json_out, args.overwrite)
+    options.distinct_outputs(("--json-out", args.json_out), ("--write-sim", args.write_sim),
+                             ("--save", getattr(args, "rerun_save", None)))
+    if args.check_rows is not None and not args.check:
+        from urident.errors import ConfigError
+
+        raise ConfigError("--check-rows needs --check LOG")
+    if args.sim and args.check:
+        from urident.errors import ConfigError
+
+        raise ConfigError("--check is not available with --sim (the held-out check tests the paper "
+                          "baseline's findings); leave one out")
     if args.sim or args.write_sim:
         from urident.cli.gap_sim import run_sim
 
         return run_sim(args, _load_all, _json_default)
-    if not args.ident:
-        from urident.errors import ConfigError
+    from urident.errors import ConfigError
 
+    if not args.ident and not args.ident_from:
         raise ConfigError("--ident LOG is required (or --sim MODEL for a simulator model's gap)")
     effects = args.effects or EFFECTS
     floor = {} if args.min_shrink_pct is None else {"min_shrink_pct": args.min_shrink_pct}
@@ -126,14 +137,17 @@ def run(args: argparse.Namespace) -> int:
 
         params = load_params(args.params)
     drive_gains = None if args.drive_gains is None else np.array(args.drive_gains)
-    ident = _load_all(logs_from_args(args.ident, args.ident_from, "--ident"), args, args.ident_rows,
-                      spec.name, "identification")
-    valid = _load_all(logs_from_args(args.valid, args.valid_from, "--valid"), args, args.valid_rows,
-                      spec.name, "validation")
+    ident_paths = logs_from_args(args.ident, args.ident_from, "--ident")
+    valid_paths = logs_from_args(args.valid, args.valid_from, "--valid")
     check = None
     if args.check:
-        _refuse_reused(args)
-        check_logs = _load_all(args.check, args, args.check_rows, spec.name, "check")
+        _refuse_reused(args, ident_paths, valid_paths)
+    ident = _load_all(ident_paths, args, args.ident_rows, spec.name, "identification")
+    valid = _load_all(valid_paths, args, args.valid_rows, spec.name, "validation")
+    if args.check:
+        from urident.logs.cli_args import expand_log_paths
+
+        check_logs = _load_all(expand_log_paths(args.check, "--check"), args, args.check_rows, spec.name, "check")
     with Working("gap: diagnosis"):
         result = diagnose(ident, valid, spec, params=params, drive_gains=drive_gains, config=config,
                           payload=options.load_payload_arg(args, spec))
@@ -166,20 +180,16 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _refuse_reused(args) -> None:
-    """A check log must be held out: the same file with the same rows as an identification or
-    validation log is refused (another row range of the same file is fine)."""
-    import os
-
-    from urident.errors import ConfigError
+def _refuse_reused(args, ident_paths, valid_paths) -> None:
+    """A check log must be held out: the same data (content, by hash, and rows) as an
+    identification or validation log is refused (another row range of the same file is fine)."""
+    from urident.logs.cli_args import expand_log_paths, refuse_same_logs
 
     rows = lambda r: r if r is not None else getattr(args, "log_rows", None)   # noqa: E731
-    used = {(os.path.realpath(p), rows(args.ident_rows)) for p in args.ident}
-    used |= {(os.path.realpath(p), rows(args.valid_rows)) for p in args.valid}
-    for p in args.check:
-        if (os.path.realpath(p), rows(args.check_rows)) in used:
-            raise ConfigError(f"--check {p}: also an identification or validation log with the same rows "
-                              "(give another log or another --check-rows range)")
+    used = [(f"--ident {p}", p, rows(args.ident_rows)) for p in ident_paths]
+    used += [(f"--valid {p}", p, rows(args.valid_rows)) for p in valid_paths]
+    check = [(f"--check {p}", p, rows(args.check_rows)) for p in expand_log_paths(args.check, "--check")]
+    refuse_same_logs(check, used, "a check log must be held out (give another log or another --check-rows range)")
 
 
 def _json_default(x):

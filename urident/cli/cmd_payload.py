@@ -69,6 +69,9 @@ def run(args: argparse.Namespace) -> int:
     from urident.logs import load_log_from_args
     from urident.model import load_robot
 
+    options.distinct_outputs(("--out", args.out), ("--json-out", args.json_out),
+                             inputs=(("--params", args.params), *options.log_inputs("LOG", args.logs),
+                                     *options.log_inputs("--unloaded", args.unloaded)))
     options.output_path("--out", args.out, args.overwrite)
     options.output_path("--json-out", args.json_out, args.overwrite)
     arm = load_params(args.params)
@@ -82,11 +85,18 @@ def run(args: argparse.Namespace) -> int:
     if args.unloaded_rows is not None and not args.unloaded:
         raise ConfigError("--unloaded-rows needs --unloaded LOG")
     if args.unloaded:
-        tare = [load_log_from_args(p, args, robot=spec.name, rows=args.unloaded_rows) for p in args.unloaded]
         rows = args.unloaded_rows or getattr(args, "log_rows", None)
+        from urident.logs.cli_args import refuse_same_logs
+
+        refuse_same_logs([(f"--unloaded {p}", p, rows) for p in args.unloaded],
+                         [(f"LOG {p}", p, getattr(args, "log_rows", None)) for p in args.logs],
+                         "a tare is a run without the tool")
+        tare = [load_log_from_args(p, args, robot=spec.name, rows=args.unloaded_rows) for p in args.unloaded]
         shown_rows = f" rows {rows[0]}-{rows[1]}" if rows else ""
-        for rec in tare:   # the clearer message first: a still wrist is no tare of a payload motion
-            check_wrist_motion(rec.q, "unloaded logs")
+        flag = (f" (--unloaded-rows {rows[0]}-{rows[1]})" if args.unloaded_rows else
+                f" (--rows {rows[0]}-{rows[1]})" if rows else "")
+        for p, rec in zip(args.unloaded, tare):   # the clearer message first: a still wrist is no tare of a payload motion
+            check_wrist_motion(rec.q, f"--unloaded {p}{flag}")
         check_same_motion([(str(p), r.t, r.q) for p, r in zip(args.logs, recordings)],
                           [(f"--unloaded {p}{shown_rows}", r.t, r.q) for p, r in zip(args.unloaded, tare)])
         unloaded = since_first_row(predict_recordings(arm, tare, spec, drive_gains=args.drive_gains or None), tare)
@@ -100,7 +110,8 @@ def run(args: argparse.Namespace) -> int:
            "drive_gains": [float(g) for g in gains], "params": str(args.params),
            "unloaded_logs": [str(p) for p in args.unloaded or []]}
     save_payload(est.consistent, args.out, overwrite=args.overwrite, fit=fit)
-    fixed = [n for n in _fields() if n not in est.consistent.identifiable]
+    bound = est.consistent.info.get("mass_bound_kg")
+    fixed = [n for n in _fields() if n not in est.consistent.identifiable and not (bound is not None and n == "m")]
     lines = [f"payload on {spec.name} from {len(args.logs)} log(s), {est.n_samples} samples, arm {args.params}"
              + (f", tare: {len(args.unloaded)} unloaded log(s) of {len(unloaded)} samples, subtracted sample by "
                 f"sample from {est.ols.info['tared_samples']} loaded samples (every error of the arm model on "
@@ -121,7 +132,13 @@ def run(args: argparse.Namespace) -> int:
              + f"  e_N {est.train_e_n:.4f}",
              "  drive gains [N·m/A] " + ", ".join(f"{g:.4g}" for g in gains)
              + (" (given)" if args.drive_gains else " (the parameters file's)"),
-             est.consistent.urscript(), f"  ({POLYSCOPE_NOTE})"]
+             *([est.consistent.urscript(), f"  ({POLYSCOPE_NOTE})"] if bound is None else
+               [f"  mass NOT identified: on the --mass-range bound {bound:g} kg (active: the bound, not the "
+                f"logs, sets it; least squares {est.ols.mass_kg:.4g} kg); no set_target_payload line: "
+                "widen --mass-range or leave it out"])]
+    if est.train_e_n > est.train_e_n_arm:
+        lines.insert(-1, f"  the payload makes the fit worse than the arm alone (e_N {est.train_e_n:.4f} vs "
+                         f"{est.train_e_n_arm:.4f}): do the logs carry this tool?")
     print("\n".join(lines))
     if args.json_out:
         from urident.fileio import write_text_atomic

@@ -6,6 +6,7 @@ import argparse
 import importlib
 import os
 import sys
+import warnings
 
 from urident import __version__
 from urident.cli.options import ArgumentParser
@@ -60,9 +61,12 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 1
     try:
-        return int(args.func(args) or 0)
+        with warnings.catch_warnings():
+            if not os.environ.get("URIDENT_DEBUG"):   # numpy's floating-point notes: urident's checks name bad values
+                warnings.simplefilter("ignore", RuntimeWarning)
+            return int(args.func(args) or 0)
     except UridentError as exc:
-        print(f"urident: error: {exc}", file=sys.stderr)
+        print(f"urident: error: {' '.join(str(exc).split())}", file=sys.stderr)   # one line, whatever a library said
         return exc.exit_code
     except KeyboardInterrupt:
         print("urident: interrupted", file=sys.stderr)
@@ -70,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as exc:  # noqa: BLE001 - a bug, not bad input: still one line by default
         if os.environ.get("URIDENT_DEBUG"):
             raise
-        print(f"urident: internal error: {type(exc).__name__}: {exc} "
+        print(f"urident: internal error: {type(exc).__name__}: {' '.join(str(exc).split())} "
               f"(run with URIDENT_DEBUG=1 for the traceback, and please report it)", file=sys.stderr)
         return 70
 

@@ -265,6 +265,27 @@ def output_path(flag: str, path: str | Path | None, overwrite: bool, suffix: str
     return check_output(path, flag, overwrite)
 
 
+def distinct_outputs(*outputs: tuple[str, str | Path | None],
+                     inputs: tuple[tuple[str, str | Path | None], ...] = ()) -> None:
+    """``(flag, path)`` outputs of one command: refused now when two name one file, or one names an
+    input (:func:`urident.fileio.check_distinct_outputs`)."""
+    from urident.fileio import check_distinct_outputs
+
+    check_distinct_outputs(outputs, inputs)
+
+
+def log_inputs(flag: str, paths) -> tuple[tuple[str, Path], ...]:
+    """Input logs for :func:`distinct_outputs`: each path and, for a CSV log, its sidecar."""
+    from urident.logs.schema import sidecar_path
+
+    out = []
+    for p in paths or ():
+        out.append((flag, Path(p)))
+        if Path(p).suffix == ".csv":
+            out.append((flag, sidecar_path(Path(p))))
+    return tuple(out)
+
+
 def output_dir_files(flag: str, directory: str | Path | None, names, overwrite: bool) -> None:
     """``--png DIR``-style outputs: the directory (created later if missing) and, if it exists,
     each of the files ``names`` the command will write into it."""
@@ -406,6 +427,8 @@ def point_payload(args: argparse.Namespace, spec):
     from urident.ident.payload import Payload
 
     com = (0.0, 0.0, 0.0) if args.payload_com is None else args.payload_com
+    spec.check_rated_payload(args.payload_mass, "--payload-mass")
+    spec.check_tool_com(com, "--payload-com")
     return Payload(spec.name, args.payload_mass, com, np.zeros((3, 3)))
 
 

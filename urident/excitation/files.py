@@ -226,8 +226,7 @@ def parse_trajectory_document(data: Any, path: Path | None = None) -> Trajectory
 
         section = r.mapping(data["payload"], "payload")
         r.keys(section, {"mass_kg", "com_m", "inertia_kg_m2"}, "payload", required=("mass_kg", "com_m"))
-        mass, com, inertia = inertial_fields(r, section, "payload")
-        spec.check_rated_payload(mass, f"{r.label}: payload.mass_kg")
+        mass, com, inertia = inertial_fields(r, section, "payload", spec=spec)
         payload = Payload(spec.name, mass, com, inertia)
 
     traj = r.get(data, "trajectory", dict)

@@ -131,8 +131,14 @@ class ExcitationProblem:
         checked = np.isfinite(self.capsules.required)
         self.checked = checked
         self.required = self.capsules.required[checked] + s.collision_buffer_m
-        if np.any(self.capsules.margins(spec, self.q0[None])[0][checked] < 0):
-            raise ValueError("the offset configuration q0 itself violates the collision clearance")
+        margins0 = self.capsules.margins(spec, self.q0[None])[0]
+        if np.any(margins0[checked] < 0):
+            k = np.flatnonzero(checked)[np.argmin(margins0[checked])]
+            pair = self.capsules.pair_names[k]
+            tool = (f" (the tool capsule: radius {spec.tool.radius_m:g} m, length {spec.tool.length_m:g} m)"
+                    if spec.tool is not None and "tool" in pair else "")
+            raise ValueError(f"the offset configuration q0 itself violates the collision clearance: pair "
+                             f"{pair}{tool} by {-margins0[k]:.3g} m")
         T, w, L = s.duration_s, s.omega, s.harmonics
         grid = lambda n: np.arange(n) * (T / n)  # noqa: E731  (periodic: t = T equals t = 0)
         self.basis_criterion = FourierBasis.build(grid(s.criterion_samples), w, L)

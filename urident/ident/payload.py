@@ -581,6 +581,9 @@ def estimate_payload(params, spec, data, mass_range=None, regularisation: float 
         a_fit = a[rows] * w[:, None]
         y_fit = (residual - tare)[keep].reshape(-1) * w
         nuisance = _friction_columns(data.select(keep)) * w[:, None]
+        if not np.max(np.abs(y_fit)) > 1e-9 * max(float(np.max(np.abs(residual))), 1e-300):
+            raise PayloadError("the tare runs' torques equal the loaded runs' (nothing between them to "
+                               "identify): is the tare a run without the tool, and not the loaded log itself?")
     n_rows = len(y_fit) // 6
     link = nominal_link_torque(spec, blocks)
     phi = None
@@ -604,11 +607,29 @@ def estimate_payload(params, spec, data, mass_range=None, regularisation: float 
     reg = DEFAULT_REGULARISATION if regularisation is None else regularisation
     phi_c = _consistent(aw, yw, phi, free, mass_range, noise_var, reg)
     phi_c[4:10] += _psd_repair(phi_c)
+    bound = mass_bound(phi_c[0], mass_range)
+    cons_info = info if bound is None else {**info, "mass_bound_kg": bound}
     cons = from_flange_vector(spec.name, phi_c, sigma=_sigma_dict(phi_c, sigma),
-                              identifiable=identifiable, method="consistent", info=info)
+                              identifiable=tuple(n for n in identifiable if bound is None or n != "m"),
+                              method="consistent", info=cons_info)
     e_arm, rms_arm = error_metrics(residual)
     e_pl, rms_pl = error_metrics(residual - (a @ phi_c).reshape(-1, 6))
     return PayloadEstimate(ols, cons, rms_arm, rms_pl, e_arm, e_pl, n)
+
+
+#: The consistent mass counts as on a ``mass_range`` bound within this relative distance (the
+#: solver's tolerance is ~1e-8): the bound, not the data, then sets it.
+BOUND_TOL = 1e-4
+
+
+def mass_bound(mass: float, mass_range) -> float | None:
+    """The bound of ``mass_range`` the mass sits on (an active constraint), or None."""
+    if mass_range is None:
+        return None
+    for bound in mass_range:
+        if abs(mass - bound) <= BOUND_TOL * bound:
+            return float(bound)
+    return None
 
 
 def _psd_repair(phi: np.ndarray) -> np.ndarray:

@@ -43,7 +43,8 @@ def to_dict(p: Payload, fit: dict | None = None) -> dict:
                  "com_m": [_nan_none(v) for v in p.sigma["com_m"]],
                  "inertia_kg_m2": [[_nan_none(v) for v in row] for row in p.sigma["inertia_kg_m2"]]}
     out = {"format": FORMAT, "version": VERSION, "robot": p.robot, "method": p.method, **inertial_dict(p),
-           "sigma": sigma, "identifiable": list(p.identifiable), "urscript": p.urscript()}
+           "sigma": sigma, "identifiable": list(p.identifiable),
+           "urscript": None if p.info.get("mass_bound_kg") is not None else p.urscript()}   # a bound's mass is no tool's
     if fit:
         out["fit"] = fit
     if p.info.get("capsule"):
@@ -56,19 +57,26 @@ def save_payload(p: Payload, path, overwrite: bool = False, fit: dict | None = N
                       fsync=False, overwrite=overwrite)
 
 
-def inertial_fields(f: Fields, data: dict, where: str = "") -> tuple[float, np.ndarray, np.ndarray]:
-    """``mass_kg`` (> 0), ``com_m`` (3) and the optional ``inertia_kg_m2`` (3×3, symmetric, ⪰ 0;
-    default zero) of the mapping ``data`` at key path ``where`` (a payload file's top level, a
-    trajectory file's ``payload``)."""
+def inertial_fields(f: Fields, data: dict, where: str = "", spec=None) -> tuple[float, np.ndarray, np.ndarray]:
+    """``mass_kg`` (> 0), ``com_m`` (3) and the optional ``inertia_kg_m2`` (3×3, symmetric, ⪰ 0,
+    principal moments within the triangle inequality; default zero) of the mapping ``data`` at key
+    path ``where`` (a payload file's top level, a trajectory file's ``payload``); with ``spec``,
+    the mass within the robot's rated payload and the centre of mass within its reach."""
+    from urident.model.robot import inertia_problem
+
     mass = f.number(data, "mass_kg", where, positive=True)
     com = f.array(data, "com_m", where, 3)
     inertia = (np.zeros((3, 3)) if data.get("inertia_kg_m2") is None
                else f.array(data, "inertia_kg_m2", where, (3, 3)))
     if not np.allclose(inertia, inertia.T, atol=1e-12 + 1e-9 * np.abs(inertia).max()):
         raise f.fail(key_path(where, "inertia_kg_m2"), "must be symmetric")
-    ev = np.linalg.eigvalsh(inertia)
-    if ev.min() < -1e-9 * max(ev.max(), 1e-12):
-        raise f.fail(key_path(where, "inertia_kg_m2"), "must be positive semidefinite (about the centre of mass)")
+    problem = inertia_problem(0.5 * (inertia + inertia.T), definite=False)
+    if problem:
+        raise f.fail(key_path(where, "inertia_kg_m2"), f"{problem} (about the centre of mass)")
+    if spec is not None:
+        for key, problem in (("mass_kg", spec.rated_payload_problem(mass)), ("com_m", spec.tool_com_problem(com))):
+            if problem:
+                raise f.fail(key_path(where, key), problem)
     return mass, com, inertia
 
 
@@ -90,7 +98,7 @@ def load_payload(path, spec=None) -> Payload:
     robot = f.get(data, "robot", str)
     if spec is not None and robot != spec.name:
         raise f.fail("robot", f"payload for robot {robot!r}, not {spec.name!r}")
-    mass, com, inertia = inertial_fields(f, data)
+    mass, com, inertia = inertial_fields(f, data, spec=spec)
     ident = data.get("identifiable", list(PAYLOAD_FIELDS))
     if not isinstance(ident, list) or any(x not in PAYLOAD_FIELDS for x in ident):
         raise f.fail("identifiable", f"must list names among {', '.join(PAYLOAD_FIELDS)}")

@@ -99,6 +99,48 @@ class DriveGainEstimate:
     base_params: np.ndarray  # (b,) base parameters of the arm without payload
 
 
+#: An estimated drive gain beyond this factor of the robot file's is no drive's (the datasheet's gear
+#: ratio and torque constant fix it far closer): the runs or the load are not what was given.
+GAIN_FACTOR = 2.0
+
+
+class DriveGainError(ConfigError):
+    """The runs cannot give drive gains; ``swapped``: the loaded run looks like the unloaded one."""
+
+    def __init__(self, message: str, swapped: bool = False):
+        super().__init__(message)
+        self.swapped = swapped
+
+
+def gain_problem(gains: np.ndarray, reference: np.ndarray, joints=range(6)) -> str | None:
+    """Why drive gains [N·m/A] are no drive's, or None: not finite, ≤ 0, or beyond
+    :data:`GAIN_FACTOR` of the robot file's ``reference`` (names the first such joint of ``joints``,
+    0-based)."""
+    ratio = np.asarray(gains, dtype=float) / np.asarray(reference, dtype=float)
+    for j in joints:
+        g, r = gains[j], ratio[j]
+        if not np.isfinite(g) or not 1 / GAIN_FACTOR <= r <= GAIN_FACTOR:
+            return (f"joint {j + 1}'s gain {g:.4g} N·m/A is {r:.3g} × the robot file's {reference[j]:.4g} "
+                    f"(physical: within {1 / GAIN_FACTOR:g}-{GAIN_FACTOR:g} ×)")
+    return None
+
+
+def _check_scale(gains: np.ndarray, reference: np.ndarray) -> None:
+    """DriveGainError unless the gains' typical scale (their median ratio to the robot file's) is
+    a drive's: negative when the loaded run carries less torque than the unloaded one (swapped),
+    far off when the loaded run does not show the given load."""
+    ratio = float(np.median(np.asarray(gains, dtype=float) / np.asarray(reference, dtype=float)))
+    if not np.isfinite(ratio):
+        raise DriveGainError("the runs do not determine the drive gains (no finite fit)")
+    if ratio <= 0:
+        raise DriveGainError(f"the drive gains come out negative ({ratio:.3g} × the robot file's): the "
+                             "loaded run carries less torque than the unloaded one", swapped=True)
+    if not 1 / GAIN_FACTOR <= ratio <= GAIN_FACTOR:
+        raise DriveGainError(f"the drive gains come out at {ratio:.3g} × the robot file's: the loaded run "
+                             "does not show the given load's torque (is the load mounted in the loaded "
+                             "run only, with the mass and centre of mass given?)")
+
+
 def payload_params(mass: float, com: Sequence[float], inertia_com: np.ndarray | None = None) -> np.ndarray:
     """Ten parameters (about K_6) of a payload of ``mass`` [kg] with centre of mass ``com`` [m] in K_6."""
     from urident.model.parameters import body_params
@@ -167,6 +209,7 @@ def estimate_drive_gains(spec, run_without, run_with, payload: np.ndarray,
     scale = np.linalg.norm(a, axis=0)
     scale[scale == 0] = 1.0
     x = np.linalg.lstsq(a / scale, y, rcond=None)[0] / scale
+    _check_scale(x[b:], spec.drive_gains)   # before the instruments divide by the gains
     # The measured currents are noisy regressors (errors in variables), which biases plain least
     # squares towards smaller gains. Instrumental variables fix it: the instruments are the same
     # columns with the currents predicted by the first fit, uncorrelated with the noise.
@@ -176,11 +219,19 @@ def estimate_drive_gains(spec, run_without, run_with, payload: np.ndarray,
             tau = (wb @ x[:b]).reshape(-1, 6) - (0 if k == 0 else rhs[1].reshape(-1, 6))
             predicted.append(tau / x[b:])
         z = stacked(predicted)
-        x = np.linalg.solve((z / scale).T @ (a / scale), (z / scale).T @ y) / scale
+        try:
+            x = np.linalg.solve((z / scale).T @ (a / scale), (z / scale).T @ y) / scale
+        except np.linalg.LinAlgError:
+            raise DriveGainError("the runs do not determine the drive gains (singular instrumental-"
+                                 "variable system: do both runs move every joint?)") from None
+        _check_scale(x[b:], spec.drive_gains)
     e = a @ x - y
     dof = max(a.shape[0] - a.shape[1], 1)
     zs, as_ = z / scale, a / scale
-    m = np.linalg.inv(zs.T @ as_)
+    try:
+        m = np.linalg.inv(zs.T @ as_)
+    except np.linalg.LinAlgError:
+        raise DriveGainError("the runs do not determine the drive gains (singular covariance)") from None
     from urident.ident.estimate import correlation_inflation
 
     # per run: a smooth residual (unmodelled effects) carries fewer independent samples than rows

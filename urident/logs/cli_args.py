@@ -204,3 +204,27 @@ def check_log_usable(recording: Recording, allow_aborted: bool = False,
     if gaps and not allow_gaps:
         raise LogFormatError(f"{where}: {describe_gaps(gaps)}; pass --allow-gaps to use it "
                              f"(the pieces between gaps are then processed separately)")
+
+
+def log_identity(path: str | Path, rows: tuple[int, int] | None) -> tuple[str, tuple[int, int] | None]:
+    """(content hash, rows) of a log as a command reads it: two names of one content (a copy, a
+    link) with the same rows are the same data."""
+    from .sidecar import sha256_file
+
+    p = Path(path)
+    try:
+        return sha256_file(p), rows
+    except OSError:      # unreadable: the loader names it; here the name stands for the content
+        return f"path:{p.resolve()}", rows
+
+
+def refuse_same_logs(these, others, why: str) -> None:
+    """ConfigError when a log of ``these`` holds the same data (content and rows,
+    :func:`log_identity`) as one of ``others``; both are sequences of (label, path, rows), the
+    label naming the flag and path; ``why`` says what the two groups must be."""
+    seen = {log_identity(path, rows): label for label, path, rows in others}
+    for label, path, rows in these:
+        other = seen.get(log_identity(path, rows))
+        if other is not None:
+            shown_rows = f" rows {rows[0]}-{rows[1]}" if rows else ""
+            raise ConfigError(f"{label}: the same data as {other}{shown_rows} (identical content): {why}")

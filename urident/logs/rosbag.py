@@ -180,6 +180,7 @@ class _BagLoader:
         rosbag2, typesys = _rosbags()
         store = _typestore(typesys)
         joints = ur_joint_names(_robot_joints(self.robot))
+        _check_metadata(Path(self.path))
         try:
             reader = rosbag2.Reader(self.path)
         except FileNotFoundError:
@@ -588,3 +589,16 @@ def _write_modes(writer, store, msgtype, topic, t_ns, modes) -> None:
         if m != last:
             writer.write(conn, int(ns), store.serialize_cdr(cls(mode=m), msgtype))
             last = m
+
+
+def _check_metadata(path: Path) -> None:
+    """A bag directory's ``metadata.yaml`` read by the one strict YAML reader first: a garbage file
+    is named with its line in one line (rosbags' own message spans several)."""
+    meta = path / "metadata.yaml"
+    if not (path.is_dir() and meta.is_file()):
+        return
+    from urident.yamlio import load_yaml
+
+    doc = load_yaml(meta, "bag metadata", LogFormatError)
+    if not isinstance(doc, dict) or not isinstance(doc.get("rosbag2_bagfile_information"), dict):
+        raise LogFormatError(f"{meta}: not a rosbag2 metadata file (no rosbag2_bagfile_information mapping)")

@@ -9,6 +9,7 @@ collision geometry. See ``robots/ur5.yaml`` for the documented format.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable
@@ -150,12 +151,40 @@ class RobotSpec:
         b = a + np.asarray(self.tool_rotation, dtype=float) @ np.array([0.0, 0.0, self.tool.length_m])
         return (Capsule(a, b, float(self.tool.radius_m)),)
 
-    def check_rated_payload(self, mass_kg: float, where: str) -> None:
-        """ConfigError (one line naming ``where``) when ``mass_kg`` exceeds the datasheet's rated
-        payload: a trajectory is never checked, nor run, for a load the arm is not rated for."""
+    def rated_payload_problem(self, mass_kg: float) -> str | None:
+        """Why a load of ``mass_kg`` cannot be on this arm (above the datasheet's rated payload: a
+        trajectory is never checked, nor run, for a load the arm is not rated for), or None."""
+        if not math.isfinite(mass_kg):
+            return f"payload mass must be finite, not {mass_kg}"
         if self.payload_kg is not None and mass_kg > self.payload_kg:
-            raise ConfigError(f"{where}: payload {mass_kg:g} kg exceeds the rated payload of "
-                              f"{self.model or self.name} ({self.payload_kg:g} kg, robot file '{self.name}')")
+            return (f"payload {mass_kg:g} kg exceeds the rated payload of {self.model or self.name} "
+                    f"({self.payload_kg:g} kg, robot file '{self.name}')")
+        return None
+
+    def check_rated_payload(self, mass_kg: float, where: str) -> None:
+        """ConfigError (one line naming ``where``): :meth:`rated_payload_problem`."""
+        problem = self.rated_payload_problem(mass_kg)
+        if problem:
+            raise ConfigError(f"{where}: {problem}")
+
+    def tool_com_problem(self, com_m) -> str | None:
+        """Why a tool's centre of mass [m, flange frame] is impossible, or None: not finite, or
+        farther from the flange than the arm's datasheet reach (a value in mm, or a typo)."""
+        com = np.asarray(com_m, dtype=float)
+        if not np.all(np.isfinite(com)):
+            return f"centre of mass must be finite, not {com.tolist()}"
+        dist = float(np.linalg.norm(com))
+        if self.reach_m is not None and dist > self.reach_m:
+            return (f"centre of mass {dist:.4g} m from the flange, beyond the reach of "
+                    f"{self.model or self.name} ({self.reach_m:g} m, robot file '{self.name}'): "
+                    "metres, not millimetres?")
+        return None
+
+    def check_tool_com(self, com_m, where: str) -> None:
+        """ConfigError (one line naming ``where``): :meth:`tool_com_problem`."""
+        problem = self.tool_com_problem(com_m)
+        if problem:
+            raise ConfigError(f"{where}: {problem}")
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -330,14 +359,20 @@ class _Reader(Fields):
         return array
 
 
-def inertia_problem(inertia: np.ndarray) -> str | None:
+def inertia_problem(inertia: np.ndarray, definite: bool = True) -> str | None:
     """Why a (3, 3) inertia about the centre of mass is physically impossible, or None: it must be
-    symmetric positive definite and its principal moments must satisfy the triangle inequality
-    (each at most the sum of the other two, as for any real mass distribution)."""
+    symmetric positive definite (``definite`` False: semidefinite, a point mass's zero allowed) and
+    its principal moments must satisfy the triangle inequality (each at most the sum of the other
+    two, as for any real mass distribution). Robot files and payloads (files, trajectories) use it."""
     moments = np.linalg.eigvalsh(inertia)
     scale = max(float(np.abs(moments).max()), 1e-300)
-    if moments.min() <= 1e-12 * scale:
+    if not np.all(np.isfinite(moments)):
+        return "must be finite"
+    if definite and moments.min() <= 1e-12 * scale:
         return (f"is not positive definite (principal moments "
+                f"{', '.join(f'{m:.4g}' for m in moments)} kg m^2)")
+    if not definite and moments.min() < -1e-9 * scale:
+        return (f"is not positive semidefinite (principal moments "
                 f"{', '.join(f'{m:.4g}' for m in moments)} kg m^2)")
     a, b, c = moments
     if c > a + b + 1e-9 * scale:

@@ -13,7 +13,6 @@ process supervised by :mod:`urident.session.supervisor`, told what happens throu
 
 from __future__ import annotations
 
-import hashlib
 import io
 import os
 import signal
@@ -30,6 +29,7 @@ import numpy as np
 from urident.errors import (ConfigError, ConnectionLost, ControllerUnreachable, Interrupted,
                             SafetyError, SessionAborted)
 from urident.fileio import write_bytes_atomic
+from urident.logs.sidecar import sha256_file
 from urident.model import RobotSpec, load_robot
 from urident.session.config import ExperimentConfig
 from urident.session.monitors import RunMonitor, safety_problem
@@ -73,10 +73,6 @@ class PlannedMotion:
     t: np.ndarray        # (K,) command times [s]
     q_cmd: np.ndarray    # (K, 6) servo targets, trajectory repeated, then rest
     payload: object = None   # the load the torque check included (None: the empty flange)
-
-
-def _sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 def plan_motion(spec: RobotSpec, trajectory_path: Path, rate_hz: float, repeat: int,
@@ -364,7 +360,7 @@ def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion:
         "controller_version": info.version_text,
         "rate_hz": info.rate_hz,
         "trajectory_file": str(request.trajectory),
-        "trajectory_sha256": _sha256(request.trajectory),
+        "trajectory_sha256": sha256_file(request.trajectory),
         "gear_ratios": spec.gear_ratios.tolist(),
         "torque_constants": spec.torque_constants.tolist(),
         "start_time": datetime.now(timezone.utc).isoformat(timespec="seconds"),

@@ -12,6 +12,7 @@ axes lie within 0.01 rad of the robot file's at q = 0 and at four other poses; a
 
 from __future__ import annotations
 
+import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -165,6 +166,11 @@ def _load_urdf(path: Path, spec, friction_eps: float) -> SimModel:
                                 f"joints with limits" + (" (a continuous joint has no limits and two "
                                                          "configuration coordinates)" if kind == "continuous" else ""))
         dyn = joint.find("dynamics")
+        for attr in ("damping", "friction"):
+            text = dyn.get(attr) if dyn is not None else None
+            if text is not None and not _nonnegative(text):
+                raise SimModelError(f"{path}: <joint name={name!r}>: <dynamics {attr}={text!r}>: must be a "
+                                    "finite number >= 0")
         try:
             damping.append(float(dyn.get("damping", 0)) if dyn is not None else 0.0)
             friction.append(float(dyn.get("friction", 0)) if dyn is not None else 0.0)
@@ -176,12 +182,18 @@ def _load_urdf(path: Path, spec, friction_eps: float) -> SimModel:
         moving.append(name)
     if len(moving) != len(spec.joints):
         raise SimModelError(f"{path}: {len(moving)} revolute joints, {spec.name} has {len(spec.joints)}")
+    _check_urdf_inertials(path, root)
     import pinocchio as pin
 
+    from urident.quiet import captured_fds
+
     try:
-        model = pin.buildModelFromUrdf(str(path))
+        with captured_fds() as said:     # urdfdom's C++ parser prints its errors itself
+            model = pin.buildModelFromUrdf(str(path))
     except (RuntimeError, ValueError) as exc:
-        raise SimModelError(f"{path}: Pinocchio cannot load it: {' '.join(str(exc).split())}") from None
+        why = said.first_line("Error:").replace("Error:", "").strip()
+        raise SimModelError(f"{path}: Pinocchio cannot load it: {' '.join(str(exc).split())}"
+                            + (f" (urdfdom: {why})" if why else "")) from None
     names = tuple(model.names[1:])
     if list(names) != moving or model.nq != 6:
         raise SimModelError(f"{path}: the joints do not form one chain of {len(spec.joints)} revolute joints "
@@ -196,10 +208,66 @@ def _load_urdf(path: Path, spec, friction_eps: float) -> SimModel:
     return SimModel(path, "urdf", names, friction_eps, (model, data), np.array(damping), np.array(friction))
 
 
+def _nonnegative(text: str) -> bool:
+    try:
+        v = float(text)
+    except ValueError:
+        return False
+    return math.isfinite(v) and v >= 0
+
+
+def _check_urdf_inertials(path: Path, root) -> None:
+    """Every link's <inertial> mass (> 0) and inertia entries finite, named before urdfdom sees
+    them (its own messages go to the terminal and name no element)."""
+    for link in root.iter("link"):
+        inertial = link.find("inertial")
+        if inertial is None:
+            continue
+        where = f"{path}: <link name={link.get('name', '?')!r}>: <inertial>"
+        mass = inertial.find("mass")
+        value = None if mass is None else mass.get("value")
+        if value is not None and not (_nonnegative(value) and float(value) > 0):
+            raise SimModelError(f"{where}: <mass value={value!r}>: must be a finite number > 0")
+        inertia = inertial.find("inertia")
+        for attr in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"):
+            text = None if inertia is None else inertia.get(attr)
+            try:
+                ok = text is None or math.isfinite(float(text))
+            except ValueError:
+                ok = False
+            if not ok:
+                raise SimModelError(f"{where}: <inertia {attr}={text!r}>: must be a finite number")
+
+
 def load_sim_model(path: str | Path, spec, friction_eps: float = 0.01) -> SimModel:
     """The simulator model at ``path`` (MJCF or URDF, by suffix), checked against ``spec``."""
     path = Path(path)
     fmt = model_format(path)
     if not path.is_file():
         raise SimModelError(f"{path}: no such file")
-    return _load_mjcf(path, spec) if fmt == "mjcf" else _load_urdf(path, spec, friction_eps)
+    sim = _load_mjcf(path, spec) if fmt == "mjcf" else _load_urdf(path, spec, friction_eps)
+    _check_torque_scale(sim, spec)
+    return sim
+
+
+#: A model whose gravity torque at rest exceeds this many times a joint's rated torque is no model
+#: of the arm (the arm holds itself with margin): a mass in grams, a typo, 1e300.
+TORQUE_SCALE_LIMIT = 10.0
+
+
+def _check_torque_scale(sim: SimModel, spec) -> None:
+    """SimModelError when the model's torques at rest, at the check poses, are not finite or beyond
+    :data:`TORQUE_SCALE_LIMIT` × the robot file's rated torques (its masses are not the arm's)."""
+    q = check_poses(spec)
+    zero = np.zeros_like(q)
+    try:
+        tau = sim.predict(q, zero, zero)
+    except ConfigError as exc:
+        raise SimModelError(f"{sim.path}: {exc}") from None
+    limit = TORQUE_SCALE_LIMIT * np.asarray(spec.tau_max, dtype=float)
+    bad = ~np.isfinite(tau) | (np.abs(tau) > limit)
+    if bad.any():
+        k, j = np.argwhere(bad)[0]
+        raise SimModelError(f"{sim.path}: its gravity torque on joint {j + 1} at rest is {tau[k, j]:.4g} N·m, "
+                            f"beyond {TORQUE_SCALE_LIMIT:g} × the joint's rated {spec.tau_max[j]:g} N·m: "
+                            "are its masses the arm's (kg, not g)?")

@@ -8,7 +8,9 @@ a recorded trajectory passed the collision checks, and a touching capsule pair m
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 
@@ -29,17 +31,35 @@ def import_mujoco():
     return mujoco
 
 
+@contextlib.contextmanager
+def _warnings_kept(mujoco) -> Iterator[list[str]]:
+    """MuJoCo's warnings collected instead of printed and appended to MUJOCO_LOG.TXT in the working
+    directory (what it does without a user handler)."""
+    said: list[str] = []
+    previous = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(lambda msg: said.append(" ".join(str(msg).split())))
+    try:
+        yield said
+    finally:
+        mujoco.set_mju_user_warning(previous)
+
+
 def load_model(source: str | Path, *, text: bool = False):
-    """``mujoco.MjModel`` from an MJCF file (or its ``text``); MujocoModelError naming the file."""
+    """``mujoco.MjModel`` from an MJCF file (or its ``text``); MujocoModelError naming the file, also
+    when MuJoCo warns while loading it (a NaN in the XML, for one)."""
     mujoco = import_mujoco()
     label = "MJCF text" if text else str(source)
-    try:
-        if text:
-            return mujoco.MjModel.from_xml_string(str(source))
-        return mujoco.MjModel.from_xml_path(str(source))
-    except ValueError as exc:   # MuJoCo's parse/compile errors
-        message = " ".join(str(exc).split())
-        raise MujocoModelError(f"{label}: MuJoCo cannot load it: {message}") from None
+    with _warnings_kept(mujoco) as said:
+        try:
+            model = (mujoco.MjModel.from_xml_string(str(source)) if text
+                     else mujoco.MjModel.from_xml_path(str(source)))
+        except ValueError as exc:   # MuJoCo's parse/compile errors
+            message = " ".join(str(exc).split())
+            raise MujocoModelError(f"{label}: MuJoCo cannot load it: {message}"
+                                   + (f" (MuJoCo warned: {said[0]})" if said else "")) from None
+    if said:
+        raise MujocoModelError(f"{label}: MuJoCo warns: {said[0]}")
+    return model
 
 
 def hinge_joints(model) -> list[str]:
@@ -61,14 +81,18 @@ def inverse_dynamics(model, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, *,
     model.opt.disableflags = flags | int(mujoco.mjtDisableBit.mjDSBL_CONTACT) | (
         0 if frictionloss else int(mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS))
     try:
-        data = mujoco.MjData(model)
-        out = np.empty_like(np.asarray(q, dtype=float))
-        for k in range(q.shape[0]):
-            data.qpos[:] = q[k]
-            data.qvel[:] = qd[k]
-            data.qacc[:] = qdd[k]
-            mujoco.mj_inverse(model, data)
-            out[k] = data.qfrc_inverse
+        with _warnings_kept(mujoco) as said:
+            data = mujoco.MjData(model)
+            out = np.empty_like(np.asarray(q, dtype=float))
+            for k in range(q.shape[0]):
+                data.qpos[:] = q[k]
+                data.qvel[:] = qd[k]
+                data.qacc[:] = qdd[k]
+                mujoco.mj_inverse(model, data)
+                out[k] = data.qfrc_inverse
+        if said or not np.all(np.isfinite(out)):
+            raise MujocoModelError("MuJoCo's inverse dynamics of the model "
+                                   + (f"warns: {said[0]}" if said else "is not finite at every state"))
         return out
     finally:
         model.opt.disableflags = flags
