@@ -54,9 +54,15 @@ def run(args: argparse.Namespace) -> int:
     options.output_path("--out", args.out, args.overwrite)
     options.output_path("--json-out", args.json_out, args.overwrite)
     spec = load_robot(args.robot)
+    if args.log_signal not in (None, "current"):
+        from urident.errors import ConfigError
+
+        raise ConfigError(f"--signal {args.log_signal}: drive gains are estimated from the motor "
+                          "currents; leave --signal out or pass --signal current")
+    args.log_signal = "current"  # the motor currents, whatever torques the logs also carry
     runs = []
     for what, paths in (("--without", args.without), ("--with", args.with_)):
-        recs = [load_log_from_args(p, args, robot=spec.name) for p in paths]
+        recs = [load_log_from_args(p, args, robot=spec.name, say_signal=True) for p in paths]
         data = prepare(recs, spec, PreprocessConfig(), np.ones(6))   # tau = current [A]
         runs.append((data.q, data.qd, data.qdd, data.tau))
     check_wrist_motion(runs[1][0], "--with logs")

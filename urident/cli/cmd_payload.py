@@ -76,13 +76,13 @@ def run(args: argparse.Namespace) -> int:
     if arm.robot != spec.name:
         raise ConfigError(f"{args.params}: parameters are for robot {arm.robot!r}, not {spec.name!r}")
     check_compatible(arm, spec, str(args.params))
-    recordings = [load_log_from_args(p, args, robot=spec.name) for p in args.logs]
+    recordings = [load_log_from_args(p, args, robot=spec.name, say_signal=True) for p in args.logs]
     prediction = predict_recordings(arm, recordings, spec, drive_gains=args.drive_gains or None)
     unloaded = None
     if args.unloaded_rows is not None and not args.unloaded:
         raise ConfigError("--unloaded-rows needs --unloaded LOG")
     if args.unloaded:
-        tare = [load_log_from_args(p, args, robot=spec.name, rows=args.unloaded_rows) for p in args.unloaded]
+        tare = [load_log_from_args(p, args, robot=spec.name, rows=args.unloaded_rows, say_signal=True) for p in args.unloaded]
         rows = args.unloaded_rows or getattr(args, "log_rows", None)
         shown_rows = f" rows {rows[0]}-{rows[1]}" if rows else ""
         for rec in tare:   # the clearer message first: a still wrist is no tare of a payload motion
