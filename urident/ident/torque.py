@@ -81,6 +81,10 @@ def torque_signal(recording, signal: str | None = None) -> str:
     signal = signal or recording.metadata.get("signal")
     why = torque_invalid(recording)
     kind = torque_kind(recording)
+    if kind == "compensated" and recording.metadata.get("current_from_torque") and signal in (None, "current"):
+        raise ConfigError(f"{recording.source}: its effort is a gravity-compensated torque and "
+                          "carries no motor current; pass --signal compensated (gravity terms are "
+                          "then the nominal model's, not identified)")
     if signal is None:
         return "torque" if why is None and kind == "full" else "current"
     if signal not in SIGNALS:
@@ -109,12 +113,12 @@ def restored_gravity(recording, spec) -> np.ndarray:
     gravity = joint_torques(spec, spec.nominal_params, q, zero, zero)
     p = declared_payload(dict(recording.metadata))
     if p is not None and p["mass_kg"] > 0:  # its gravity needs mass and centre of mass only
-        from urident.ident.payload import payload_regressor
         from urident.model import regressor_blocks
+        from urident.model.parameters import TOOL_BODY, body_params
 
-        m = p["mass_kg"]
-        phi = np.r_[m, m * np.asarray(p["cog_m"], float), np.zeros(6)]  # flange frame
-        gravity = gravity + payload_regressor(spec, regressor_blocks(spec, q, zero, zero)) @ phi
+        com = np.asarray(spec.tool_xyz, float) + np.asarray(spec.tool_rotation, float) @ p["cog_m"]
+        load = body_params(p["mass_kg"], com, np.zeros((3, 3)))  # flange frame → K_6
+        gravity = gravity + regressor_blocks(spec, q, zero, zero)[:, :, TOOL_BODY] @ load
     return gravity
 
 

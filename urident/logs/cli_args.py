@@ -173,6 +173,10 @@ def load_log_from_args(
     if signal is not None:  # read by urident.ident.torque.torque_signal
         metadata = {**recording.metadata, "signal": signal}
         if signal == "current":
+            if recording.metadata.get("current_from_torque") and \
+                    recording.metadata.get("torque_kind") == "compensated":
+                raise LogFormatError(f"{path}: --signal current: its effort is a gravity-compensated "
+                                     "torque and carries no motor current; pass --signal compensated")
             recording = dataclasses.replace(recording, tau=None, metadata=metadata)
         elif recording.tau is None:
             raise LogFormatError(f"{path}: --signal {signal}: the log carries no joint torque "
