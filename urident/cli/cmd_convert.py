@@ -27,9 +27,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--storage", default="mcap", choices=("mcap", "sqlite3"),
                    help="storage plugin of the bag (default mcap)")
     p.add_argument("--bag-effort", dest="bag_effort", default="current",
-                   choices=("current", "torque"),
-                   help="what JointState effort carries: motor current [A] (default, as UR's "
-                        "driver) or the log's joint torque [N·m]")
+                   choices=("current", "torque", "compensated"),
+                   help="what JointState effort carries (docs/signals.md): motor current [A] "
+                        "(default, as UR's released drivers), full joint torque [N·m] (the log's, "
+                        "else current x drive gains), or UR's gravity-compensated torque [N·m] "
+                        "(the log's actual_current_as_torque, else current x drive gains less the "
+                        "nominal model's gravity and the declared payload's, as the driver with "
+                        "use_currents_as_efforts false publishes it)")
     p.add_argument("--tf-prefix", dest="tf_prefix", default=None, type=options.tf_prefix,
                    help="prefix of the joint names, as the driver's tf_prefix (e.g. ur_)")
     options.add_overwrite_argument(p, "an existing bag directory")
@@ -58,6 +62,26 @@ def check_bag_output(path: str | Path, overwrite: bool) -> Path:
     return check_output(path, "--bag", overwrite=False)
 
 
+def bag_effort_values(recording, spec, effort: str):
+    """(N, 6) effort of kind ``effort`` for ``recording`` and how it was obtained."""
+    from urident.ident.torque import restored_gravity, torque_kind
+
+    kind = torque_kind(recording)
+    if effort == "current":
+        if recording.metadata.get("current_from_torque"):
+            return recording.current, "motor current = full torque / drive gains (the log has no current)"
+        return recording.current, "the log's motor current"
+    if kind == effort or (effort == "torque" and kind == "full"):
+        return recording.tau, "the log's joint torque"
+    full = (recording.current * spec.drive_gains if kind != "compensated"
+            else recording.tau + restored_gravity(recording, spec))
+    if effort == "torque":
+        return full, "current x drive gains" if kind != "compensated" else \
+            "compensated torque + nominal gravity"
+    return full - restored_gravity(recording, spec), \
+        "current x drive gains less the nominal model's gravity (and the declared payload's)"
+
+
 def run(args: argparse.Namespace) -> int:
     from urident.errors import ConfigError
     from urident.logs import load_log_from_args, write_bag
@@ -72,13 +96,14 @@ def run(args: argparse.Namespace) -> int:
     # written beside the target, then moved into place: a failed write leaves nothing behind
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
+        values, how = bag_effort_values(recording, spec, args.bag_effort)
         write_bag(recording, tmp / out.name, spec.joint_names, effort=args.bag_effort,
-                  storage=args.storage, tf_prefix=args.tf_prefix or "")
+                  storage=args.storage, tf_prefix=args.tf_prefix or "", values=values)
         if out.exists():
             os.rename(out, tmp / "replaced")
         os.rename(tmp / out.name, out)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     print(f"wrote {out} ({len(recording)} JointState messages, {args.storage}, "
-          f"effort = {args.bag_effort})")
+          f"effort = {args.bag_effort}: {how})")
     return 0

@@ -63,9 +63,15 @@ def run(args: argparse.Namespace) -> int:
                      "the loaded and the unloaded runs must be two recordings")
     spec = load_robot(args.robot)
     payload = options.point_payload(args, spec)
+    if args.log_signal not in (None, "current"):
+        from urident.errors import ConfigError
+
+        raise ConfigError(f"--signal {args.log_signal}: drive gains are estimated from the motor "
+                          "currents; leave --signal out or pass --signal current")
+    args.log_signal = "current"  # the motor currents, whatever torques the logs also carry
     runs = []
     for what, paths in (("--without", args.without), ("--with", args.with_)):
-        recs = [load_log_from_args(p, args, robot=spec.name) for p in paths]
+        recs = [load_log_from_args(p, args, robot=spec.name, say_signal=True) for p in paths]
         data = prepare(recs, spec, PreprocessConfig(), np.ones(6))   # tau = current [A]
         runs.append((data.q, data.qd, data.qdd, data.tau))
     check_wrist_motion(runs[1][0], "--with logs")

@@ -71,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
     payload = options.load_payload_arg(args, spec)
     data = None
     if args.valid:
-        recordings = [load_log_from_args(path, args, robot=spec.name) for path in args.valid]
+        recordings = [load_log_from_args(path, args, robot=spec.name, say_signal=True) for path in args.valid]
         data = predict_recordings(params, recordings, spec, payload=payload).data
     header = [f"exported by urident from {args.params} (robot {spec.name}, method {params.method}, "
               f"Coulomb model {params.model.coulomb}, tanh eps {params.model.friction_eps:g} rad/s)"]

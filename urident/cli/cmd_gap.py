@@ -81,18 +81,20 @@ def _load_all(paths, args, rows_text, robot, what):
     from urident.logs import load_log_from_args
     from urident.progress import progress_iter
 
-    return [load_log_from_args(path, args, robot=robot, rows=rows_text)
+    return [load_log_from_args(path, args, robot=robot, rows=rows_text, say_signal=True)
             for path in progress_iter(paths, f"loading {what} logs")]
 
 
 def _logs_used(recordings, title: str) -> str:
     from urident.ident.preprocess import file_sha256
+    from urident.ident.torque import describe_signal
 
     lines = [f"{title} ({len(recordings)}):"]
     for rec in recordings:
         rows = (rec.metadata or {}).get("rows")
         rows = "" if rows is None else f" rows {rows[0]}-{rows[1]},"
-        lines.append(f"  {rec.source}:{rows} {len(rec.t)} samples, sha256 {file_sha256(rec.source) or '-'}")
+        lines.append(f"  {rec.source}:{rows} {len(rec.t)} samples, sha256 {file_sha256(rec.source) or '-'}; "
+                     f"{describe_signal(rec)}")
     return "\n".join(lines)
 
 

@@ -79,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
     if arm.robot != spec.name:
         raise ConfigError(f"{args.params}: parameters are for robot {arm.robot!r}, not {spec.name!r}")
     check_compatible(arm, spec, str(args.params))
-    recordings = [load_log_from_args(p, args, robot=spec.name) for p in args.logs]
+    recordings = [load_log_from_args(p, args, robot=spec.name, say_signal=True) for p in args.logs]
     prediction = predict_recordings(arm, recordings, spec, drive_gains=args.drive_gains or None)
     unloaded = None
     if args.unloaded_rows is not None and not args.unloaded:
@@ -91,7 +91,8 @@ def run(args: argparse.Namespace) -> int:
         refuse_same_logs([(f"--unloaded {p}", p, rows) for p in args.unloaded],
                          [(f"LOG {p}", p, getattr(args, "log_rows", None)) for p in args.logs],
                          "a tare is a run without the tool")
-        tare = [load_log_from_args(p, args, robot=spec.name, rows=args.unloaded_rows) for p in args.unloaded]
+        tare = [load_log_from_args(p, args, robot=spec.name, rows=args.unloaded_rows, say_signal=True)
+                for p in args.unloaded]
         shown_rows = f" rows {rows[0]}-{rows[1]}" if rows else ""
         flag = (f" (--unloaded-rows {rows[0]}-{rows[1]})" if args.unloaded_rows else
                 f" (--rows {rows[0]}-{rows[1]})" if rows else "")

@@ -53,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
         if m.robot != spec.name:
             raise ConfigError(f"{path}: parameters are for robot {m.robot!r}, validating on {spec.name!r}")
     payload = options.load_payload_arg(args, spec)
-    recordings = (load_log_from_args(p, args, robot=spec.name)
+    recordings = (load_log_from_args(p, args, robot=spec.name, say_signal=True)
                   for p in progress_iter(args.logs, "loading logs"))
     if len(models) > 1:  # each parameters file predicts the same recordings; one file streams them
         recordings = list(recordings)

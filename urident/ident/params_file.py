@@ -137,11 +137,13 @@ def load_params(path: str | Path) -> IdentifiedModel:
     for k, d in enumerate(provenance):
         where = f"data[{k}]"
         f.mapping(d, where)
-        f.keys(d, {"file", "rows", "sha256", "samples_used"}, where)
+        f.keys(d, {"file", "rows", "sha256", "samples_used", "signal"}, where)
         rows = None if d.get("rows") is None else _index_pair(f, d, "rows", where)
         used = (0, 0) if d.get("samples_used") is None else _index_pair(f, d, "samples_used", where)
         sha = d.get("sha256")
-        prov.append(Provenance(str(d.get("file")), rows, None if sha is None else str(sha), used))
+        signal = d.get("signal")
+        prov.append(Provenance(str(d.get("file")), rows, None if sha is None else str(sha), used,
+                               None if signal is None else str(signal)))
     fit = f.mapping(data.get("fit") or {}, "fit")
     f.keys(fit, {"n_samples", "noise_var", "e_n", "rms_nm"}, "fit")
     return IdentifiedModel(

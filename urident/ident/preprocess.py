@@ -78,10 +78,14 @@ class Provenance:
     rows: tuple[int, int] | None
     sha256: str | None
     samples_used: tuple[int, int]   # [first, last) indices into the loaded recording
+    signal: str | None = None       # where the torques came from (urident.ident.torque.SIGNAL_TEXT)
 
     def as_dict(self) -> dict:
-        return {"file": self.file, "rows": None if self.rows is None else list(self.rows),
-                "sha256": self.sha256, "samples_used": list(self.samples_used)}
+        out = {"file": self.file, "rows": None if self.rows is None else list(self.rows),
+               "sha256": self.sha256, "samples_used": list(self.samples_used)}
+        if self.signal is not None:
+            out["signal"] = self.signal
+        return out
 
 
 @dataclass(frozen=True)
@@ -253,7 +257,7 @@ def preprocess(recording, spec, config: PreprocessConfig | None = None,
     or ``drive_gains``): :func:`urident.ident.torque.measured_torque`, ``signal`` forces one;
     pass ``tau`` (N, 6) to use other torques. The recording's ``robot`` must match ``spec``. ``causal``: accelerations by
     the causal mode (module doc; no torque filter then)."""
-    from urident.ident.torque import measured_torque, resolve_drive_gains
+    from urident.ident.torque import SIGNAL_TEXT, measured_torque, resolve_drive_gains, torque_signal
 
     config = config or PreprocessConfig()
     source = str(recording.source) if recording.source is not None else "<recording>"
@@ -265,7 +269,7 @@ def preprocess(recording, spec, config: PreprocessConfig | None = None,
     for name in ("q", "qd", "current"):
         _check_finite(name, getattr(recording, name), source)
     gains = resolve_drive_gains(spec, drive_gains)
-    torque = measured_torque(recording, gains, signal) if tau is None else np.asarray(tau, float)
+    torque = measured_torque(recording, gains, signal, spec) if tau is None else np.asarray(tau, float)
     _check_finite("tau", torque, source)
     qd = np.asarray(recording.qd, dtype=float)
     if causal and config.torque_filter_hz is not None:
@@ -288,8 +292,9 @@ def preprocess(recording, spec, config: PreprocessConfig | None = None,
                                  f"with some |qd| >= {config.rest_threshold} rad/s)")
     sl = slice(first, last, int(config.decimate))
     rows = recording.metadata.get("rows") if hasattr(recording, "metadata") else None
+    used = "given torques" if tau is not None else SIGNAL_TEXT[torque_signal(recording, signal)]
     prov = Provenance(source, None if rows is None else tuple(int(r) for r in rows),
-                      file_sha256(recording.source), (first, last))
+                      file_sha256(recording.source), (first, last), used)
     return Prepared(t[sl].copy(), np.asarray(recording.q, float)[sl].copy(), qd[sl].copy(),
                     qdd[sl].copy(), torque[sl].copy(), gains, (prov,))
 

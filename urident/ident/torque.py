@@ -41,8 +41,23 @@ def torque_from_current(current: np.ndarray, drive_gains: np.ndarray) -> np.ndar
     return np.asarray(current, dtype=float) * np.asarray(drive_gains, dtype=float)
 
 
-#: Where the joint torques of a recording come from (``--signal``).
-SIGNALS = ("torque", "current")
+#: Where the joint torques of a recording come from (``--signal``; docs/signals.md):
+#: ``current`` motor current x drive gains; ``torque`` the log's full joint torques (a bag read
+#: with ``--effort torque``); ``compensated`` UR's gravity-compensated torque
+#: (actual_current_as_torque, a bag read with ``--effort compensated``) with the nominal model's
+#: gravity added back, so masses and first moments come from the model, not from the data.
+SIGNALS = ("current", "torque", "compensated")
+
+#: ``Recording.metadata["torque_kind"]``: what the recording's joint torques are.
+TORQUE_KINDS = ("full", "compensated")
+
+
+def torque_kind(recording) -> str | None:
+    """``full`` or ``compensated`` (UR's actual_current_as_torque), None without torques. A
+    recording that does not say (built in code) holds full torques."""
+    if recording.tau is None:
+        return None
+    return recording.metadata.get("torque_kind") or "full"
 
 
 def torque_invalid(recording) -> str | None:
@@ -60,36 +75,93 @@ def torque_invalid(recording) -> str | None:
 
 def torque_signal(recording, signal: str | None = None) -> str:
     """The signal the torques of ``recording`` come from: ``signal`` if given (or the
-    ``--signal`` its loader recorded, ``metadata["signal"]``; ``torque`` must be valid), else
-    ``torque`` when the log carries valid joint torques, else ``current``."""
+    ``--signal`` its loader recorded, ``metadata["signal"]``), else ``torque`` when the log
+    carries valid full joint torques, else ``current``. A gravity-compensated torque is never the
+    default: fitted as if full it gives wrong masses and first moments without a word."""
     signal = signal or recording.metadata.get("signal")
     why = torque_invalid(recording)
+    kind = torque_kind(recording)
+    if kind == "compensated" and recording.metadata.get("current_from_torque") and signal in (None, "current"):
+        raise ConfigError(f"{recording.source}: its effort is a gravity-compensated torque and "
+                          "carries no motor current; pass --signal compensated (gravity terms are "
+                          "then the nominal model's, not identified)")
     if signal is None:
-        return "current" if why else "torque"
+        return "torque" if why is None and kind == "full" else "current"
     if signal not in SIGNALS:
         raise ConfigError(f"signal {signal!r}: expected one of {', '.join(SIGNALS)}")
-    if signal == "torque" and why:
-        raise ConfigError(f"{recording.source}: --signal torque: {why}; use --signal current")
+    if signal != "current" and why:
+        raise ConfigError(f"{recording.source}: --signal {signal}: {why}; use --signal current")
+    if signal == "torque" and kind == "compensated":
+        raise ConfigError(f"{recording.source}: --signal torque: its joint torques are "
+                          "gravity-compensated (UR's actual_current_as_torque), not full torques; "
+                          "use --signal current (default) or --signal compensated")
+    if signal == "compensated" and kind == "full":
+        raise ConfigError(f"{recording.source}: --signal compensated: its joint torques are full "
+                          "torques; use --signal torque")
     return signal
 
 
-def measured_torque(recording, drive_gains: np.ndarray, signal: str | None = None) -> np.ndarray:
-    """(N, 6) joint torques [N·m] of ``recording`` by :func:`torque_signal`: the recorded joint
-    torques, or the motor currents times ``drive_gains``."""
-    if torque_signal(recording, signal) == "torque":
+def restored_gravity(recording, spec) -> np.ndarray:
+    """(N, 6) gravity torque [N·m] the controller took out of a compensated torque, as urident
+    can know it: the robot file's nominal model, plus the payload declared to the controller
+    during the run (sidecar), at the recorded positions."""
+    from urident.logs.sidecar import declared_payload
+    from urident.model.regressor import joint_torques
+
+    q = np.asarray(recording.q, dtype=float)
+    zero = np.zeros_like(q)
+    gravity = joint_torques(spec, spec.nominal_params, q, zero, zero)
+    p = declared_payload(dict(recording.metadata))
+    if p is not None and p["mass_kg"] > 0:  # its gravity needs mass and centre of mass only
+        from urident.model import regressor_blocks
+        from urident.model.parameters import TOOL_BODY, body_params
+
+        com = np.asarray(spec.tool_xyz, float) + np.asarray(spec.tool_rotation, float) @ p["cog_m"]
+        load = body_params(p["mass_kg"], com, np.zeros((3, 3)))  # flange frame → K_6
+        gravity = gravity + regressor_blocks(spec, q, zero, zero)[:, :, TOOL_BODY] @ load
+    return gravity
+
+
+def measured_torque(recording, drive_gains: np.ndarray, signal: str | None = None,
+                    spec=None) -> np.ndarray:
+    """(N, 6) joint torques [N·m] of ``recording`` by :func:`torque_signal`: the motor currents
+    times ``drive_gains``, the recorded full joint torques, or the compensated torques plus
+    :func:`restored_gravity` (needs ``spec``)."""
+    chosen = torque_signal(recording, signal)
+    if chosen == "torque":
         return np.asarray(recording.tau, dtype=float)
+    if chosen == "compensated":
+        if spec is None:
+            raise ConfigError("--signal compensated needs the robot model to restore the gravity")
+        return np.asarray(recording.tau, dtype=float) + restored_gravity(recording, spec)
     return torque_from_current(recording.current, drive_gains)
 
 
+#: What each signal can identify, for reports and parameter files.
+SIGNAL_TEXT = {
+    "current": "motor current x drive gains",
+    "torque": "the recorded full joint torques",
+    "compensated": ("the gravity-compensated joint torques + the nominal model's gravity: masses "
+                    "and first moments (gravity terms) are the model's, not identified; inertia "
+                    "and friction are"),
+}
+
+
 def describe_signal(recording, signal: str | None = None) -> str:
-    """One line for reports: which signal gave the torques, and why."""
+    """One line for reports: which signal gave the torques, the correction applied, and why."""
     name = recording.source.name if recording.source is not None else "log"
     signal = signal or recording.metadata.get("signal")
-    if torque_signal(recording, signal) == "torque":
-        return f"torques of {name}: the recorded joint torques"
+    chosen = torque_signal(recording, signal)
+    text = f"torques of {name}: {SIGNAL_TEXT[chosen]}"
+    if chosen != "current":
+        return text
     why = torque_invalid(recording)
-    reason = "" if signal == "current" or why is None else f" ({why})"
-    return f"torques of {name}: motor current x drive gains{reason}"
+    if signal == "current" or recording.tau is None:
+        return text
+    if why is None and torque_kind(recording) == "compensated":
+        why = ("its joint torques are gravity-compensated (actual_current_as_torque), not used; "
+               "--signal compensated uses them without gravity terms")
+    return f"{text} ({why})" if why else text
 
 
 @dataclass(frozen=True)

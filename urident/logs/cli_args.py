@@ -74,17 +74,21 @@ def add_log_arguments(parser: argparse.ArgumentParser) -> None:
         "--effort",
         dest="log_effort",
         default=None,
-        choices=("current", "torque"),
-        help="rosbag2 input: JointState effort holds motor currents (default, UR's driver) or "
-        "joint torques",
+        choices=("current", "torque", "compensated"),
+        help="rosbag2 input: JointState effort holds motor currents [A] (UR's released drivers), "
+        "full joint torques [N·m], or UR's gravity-compensated torques [N·m] (the driver with "
+        "use_currents_as_efforts false; its main branch's default); default: detected from the "
+        "effort at standstill (docs/signals.md), asked for when the bag cannot tell",
     )
     group.add_argument(
         "--signal",
         dest="log_signal",
         default=None,
-        choices=("torque", "current"),
-        help="torques from the log's joint torques or from current x drive gains (default: the "
-        "joint torques when the log carries valid ones, else the current)",
+        choices=("current", "torque", "compensated"),
+        help="torques from current x drive gains, the log's full joint torques, or its "
+        "gravity-compensated ones with the nominal model's gravity added back (no gravity terms "
+        "identified); default: the full torques when the log carries valid ones, else the "
+        "current (docs/signals.md)",
     )
     group.add_argument(
         "--allow-aborted",
@@ -149,10 +153,12 @@ def load_log_from_args(
     robot: str | None = None,
     report: TextIO | None = None,
     rows: tuple[int, int] | None = None,
+    say_signal: bool = False,
 ) -> Recording:
     """``load_log`` with the options of :func:`add_log_arguments`; prints the drop report
     (to stderr by default) when rows were dropped. ``rows`` overrides ``--rows`` (a command's
-    rows for one group of its logs: ``gap --ident-rows``, ``payload --unloaded-rows``)."""
+    rows for one group of its logs: ``gap --ident-rows``, ``payload --unloaded-rows``).
+    ``say_signal``: print which signal gives the torques (commands that fit or compare them)."""
     recording = load_log(
         path,
         robot=robot,
@@ -167,10 +173,14 @@ def load_log_from_args(
     if signal is not None:  # read by urident.ident.torque.torque_signal
         metadata = {**recording.metadata, "signal": signal}
         if signal == "current":
+            if recording.metadata.get("current_from_torque") and \
+                    recording.metadata.get("torque_kind") == "compensated":
+                raise LogFormatError(f"{path}: --signal current: its effort is a gravity-compensated "
+                                     "torque and carries no motor current; pass --signal compensated")
             recording = dataclasses.replace(recording, tau=None, metadata=metadata)
         elif recording.tau is None:
-            raise LogFormatError(f"{path}: --signal torque: the log carries no joint torque "
-                                 "(actual_current_as_torque, or a bag read with --effort torque)")
+            raise LogFormatError(f"{path}: --signal {signal}: the log carries no joint torque "
+                                 "(actual_current_as_torque, or a bag's torque effort)")
         else:
             recording = dataclasses.replace(recording, metadata=metadata)
     line = describe_dropped(recording)
@@ -179,6 +189,14 @@ def load_log_from_args(
     declared = describe_declared_payload(recording.metadata)
     if declared:  # every report that loads the log says what the controller was told
         print(f"{path}: {declared}", file=report or sys.stderr)
+    if say_signal:  # and which signal gives its torques, with the correction applied
+        from urident.ident.torque import describe_signal
+
+        try:
+            line = describe_signal(recording)
+        except ConfigError as exc:
+            raise LogFormatError(str(exc)) from None
+        print(f"urident: {line}", file=report or sys.stderr)
     check_log_usable(recording, allow_aborted=getattr(args, "log_allow_aborted", False),
                      allow_gaps=getattr(args, "log_allow_gaps", False))
     for note in recording.metadata.get("notes") or ():  # what a bag loader decided (time source, stops)

@@ -428,6 +428,8 @@ class _Loader:
         metadata["last_line"] = int(nums[-1])
         metadata["duplicates_removed"] = self.duplicates
         metadata["dropped"] = self.report.as_dict()
+        if "tau" in arrays:  # a CSV's torque is RTDE actual_current_as_torque: UR compensates gravity
+            metadata["torque_kind"] = "compensated"
         if self.sample_count_mismatch:
             metadata["dropped"]["sample_count_mismatch"] = self.sample_count_mismatch
 

@@ -32,7 +32,10 @@ class Recording:
 
     ``t (N,)`` s; ``q, qd, current (N, 6)`` rad, rad/s, A; optional ``target_* (N, 6)``,
     ``temperature (N, 6)``, ``tau (N, 6)`` N·m (joint torque, only when the log carries one);
-    optional integer ``robot_mode, safety_status_bits, runtime_state (N,)``. ``metadata`` holds the
+    optional integer ``robot_mode, safety_status_bits, runtime_state (N,)``; ``target_gravity (N, 3)``
+    m/s² (the controller's gravity vector, PolyScope 5.26 / 10.12 on). What ``tau`` holds is
+    ``metadata["torque_kind"]``: ``compensated`` (UR's gravity-compensated actual_current_as_torque)
+    or ``full`` (docs/signals.md). ``metadata`` holds the
     sidecar (own logs) or the format description (others), plus ``dropped`` (rows removed under
     ``drop_bad``), ``duplicates_removed`` and ``status``.
     """
@@ -55,6 +58,7 @@ class Recording:
     robot_mode: np.ndarray | None = None
     safety_status_bits: np.ndarray | None = None
     runtime_state: np.ndarray | None = None
+    target_gravity: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         t = np.array(self.t, dtype=np.float64).reshape(-1)
@@ -76,6 +80,11 @@ class Recording:
             if arr.shape != (n,):
                 raise ValueError(f"Recording.{name} must have shape ({n},), got {arr.shape}")
             object.__setattr__(self, name, _freeze(arr))
+        if self.target_gravity is not None:
+            arr = np.array(self.target_gravity, dtype=np.float64)
+            if arr.shape != (n, 3):
+                raise ValueError(f"Recording.target_gravity must have shape ({n}, 3), got {arr.shape}")
+            object.__setattr__(self, "target_gravity", _freeze(arr))
         if self.source is not None:
             object.__setattr__(self, "source", Path(self.source))
         object.__setattr__(self, "metadata", dict(self.metadata))
@@ -105,7 +114,7 @@ class Recording:
     def select(self, index) -> "Recording":
         """A new Recording with samples ``index`` (slice, boolean mask or integer array)."""
         changes: dict[str, Any] = {"t": self.t[index]}
-        for name in _JOINT_ATTRS + _SCALAR_ATTRS:
+        for name in _JOINT_ATTRS + _SCALAR_ATTRS + ("target_gravity",):
             value = getattr(self, name)
             if value is not None:
                 changes[name] = value[index]

@@ -35,7 +35,23 @@ from .schema import FIELDS_BY_ATTR, N_JOINTS
 from .validate import DropReport, Issue, check_jumps, check_time, check_values
 
 DEFAULT_TOPIC = "/joint_states"
-EFFORTS = ("current", "torque")
+#: What JointState effort holds (docs/signals.md): motor currents [A] (UR's released drivers'
+#: default), full joint torques [N·m], or UR's gravity-compensated torques [N·m]
+#: (actual_current_as_torque: the driver with use_currents_as_efforts false).
+EFFORTS = ("current", "torque", "compensated")
+#: The effort check (:func:`effort_meaning`): samples with every |q̇| below this are standstill,
+#: at least MIN_STANDSTILL of them; a joint (2 or 3) is gravity-loaded there when its nominal
+#: gravity torque is at least GRAVITY_SHARE of the one with the arm stretched horizontal.
+STANDSTILL_RAD_S = 0.005
+MIN_STANDSTILL = 10
+GRAVITY_SHARE = 0.2
+#: Effort / gravity scale bands: a current (x drive gain) or a full torque follows gravity
+#: (FOLLOWS_GRAVITY; measured on the UR10e logs in /work/shared/data: 0.97 and 1.17 on joints
+#: 2 and 3); a compensated torque does not (|scale| below COMPENSATED_SCALE), unless its scale
+#: x drive gain falls in AMBIGUOUS, where it could be a current: then the bag cannot tell.
+FOLLOWS_GRAVITY = (0.7, 1.4)
+AMBIGUOUS = (0.5, 2.0)
+COMPENSATED_SCALE = 0.3
 FORMAT_ROSBAG2 = "rosbag2"
 STORAGES = ("mcap", "sqlite3")
 
@@ -128,17 +144,20 @@ def load_bag(
 ) -> Recording:
     """Load the JointState messages of ``topic`` of a rosbag2 into a :class:`Recording`.
 
-    ``effort``: ``current`` (default, UR's driver: the effort field holds motor currents [A]) or
-    ``torque`` (joint torques [N·m]; ``Recording.tau`` holds them and ``current`` is τ divided by
-    the robot file's drive gains, ``metadata["current_from_torque"]``). ``rows=(first, last)``
+    ``effort``: ``current`` (motor currents [A], UR's released drivers), ``torque`` (full joint
+    torques [N·m]) or ``compensated`` (UR's gravity-compensated torques [N·m]); for either torque
+    ``Recording.tau`` holds them (``metadata["torque_kind"]`` full / compensated) and ``current``
+    is the full torque divided by the robot file's drive gains
+    (``metadata["current_from_torque"]``). The effort's meaning is checked at standstill
+    (:func:`effort_meaning`): a contradiction with ``effort`` is refused, and without ``effort``
+    the one found is used, or the bag refused when it cannot tell. ``rows=(first, last)``
     keeps messages first..last of the topic (1-based, inclusive). Defects raise a one-line
     LogFormatError naming the bag, topic, message number and stamp; ``drop_bad`` drops the
     messages and counts them in ``metadata["dropped"]``.
     """
     path = Path(path)
     topic = topic or DEFAULT_TOPIC
-    effort = effort or "current"
-    if effort not in EFFORTS:
+    if effort is not None and effort not in EFFORTS:
         raise LogFormatError(f"effort {effort!r}: expected one of {', '.join(EFFORTS)}")
     if robot is None:
         raise LogFormatError(f"{path}: robot unknown (a bag names none); pass --robot")
@@ -341,7 +360,7 @@ class _BagLoader:
         names = ([f"position[{j}]" for j in range(N_JOINTS)]
                  + [f"velocity[{j}]" for j in range(N_JOINTS)]
                  + [f"effort[{j}]" for j in range(N_JOINTS)])
-        eff = FIELDS_BY_ATTR["tau" if self.effort == "torque" else "current"]
+        eff = FIELDS_BY_ATTR["current" if self.effort == "current" else "tau"]
         bounds = np.concatenate([np.full(N_JOINTS, FIELDS_BY_ATTR["q"].bound),
                                  np.full(N_JOINTS, FIELDS_BY_ATTR["qd"].bound),
                                  np.full(N_JOINTS, eff.bound)])
@@ -473,22 +492,29 @@ class _BagLoader:
             self.notes.append(f"{self.where(num[gaps[0].index - 1])}: {self.topic}: "
                               f"{describe_gaps(gaps)} (period {period:.4g} s)")
         q, qd, eff = v[:, :N_JOINTS], v[:, N_JOINTS:2 * N_JOINTS], v[:, 2 * N_JOINTS:]
+        from urident.model import load_robot
+
+        spec = load_robot(self.robot)
+        effort = self._effort(spec, q, qd, eff)
         tau = None
         current = eff
         metadata: dict[str, Any] = {
             "log_format": FORMAT_ROSBAG2, "status": "unknown", "topic": self.topic,
-            "joint_names": list(self._matched), "effort": self.effort,
+            "joint_names": list(self._matched), "effort": effort,
             "time_source": self.time_source, "rows": list(self.rows) if self.rows else None,
             "first_line": int(num[0]), "last_line": int(num[-1]),
             "duplicates_removed": self.duplicates, "excluded": excluded, "notes": self.notes,
             "speed_scaling": speed,
         }
-        if self.effort == "torque":
-            from urident.model import load_robot
-
+        if effort != "current":
+            gains = np.asarray(spec.drive_gains, dtype=float)
             tau = eff
-            current = eff / np.asarray(load_robot(self.robot).drive_gains, dtype=float)
+            full = eff
+            if effort == "compensated":
+                full = eff + _nominal_gravity(spec, q)
+            current = full / gains
             metadata["current_from_torque"] = True
+            metadata["torque_kind"] = "full" if effort == "torque" else "compensated"
         dropped = self.report.as_dict()
         if self.report.issues:
             first = min(self.report.issues, key=lambda i: i.line)
@@ -502,6 +528,27 @@ class _BagLoader:
         return Recording(t=t, q=q, qd=qd, current=current, tau=tau, source=self.path,
                          robot=self.robot, rate_hz=rate, metadata=metadata,
                          safety_status_bits=bits, robot_mode=mode)
+
+    def _effort(self, spec, q, qd, eff) -> str:
+        """The effort's meaning: ``--effort`` checked against gravity at standstill, or found there."""
+        found, figures = effort_meaning(spec, q, qd, eff)
+        if self.effort is None:
+            if found is None:
+                raise LogFormatError(f"{self.path}: {self.topic}: cannot tell what JointState effort "
+                                     f"holds ({figures}); pass --effort current, torque or "
+                                     "compensated (docs/signals.md)")
+            self.notes.append(f"{self.path}: effort read as {found} ({figures})")
+            return found
+        if found is None:
+            self.notes.append(f"{self.path}: effort taken as {self.effort} (--effort), not checked: "
+                              f"{figures}")
+        elif found != self.effort:
+            raise LogFormatError(f"{self.path}: --effort {self.effort} contradicts the effort at "
+                                 f"standstill ({figures}): it is {_EFFORT_TEXT[found]}; pass "
+                                 f"--effort {found}")
+        else:
+            self.notes.append(f"{self.path}: effort is {self.effort} as given ({figures})")
+        return self.effort
 
     def _speed_report(self) -> dict | None:
         """Speed scaling over the samples kept: metadata and a note (None without the topic)."""
@@ -520,6 +567,61 @@ class _BagLoader:
         return {"topic": topic, "min_percent": lo, "max_percent": hi, "unit": unit}
 
 
+_EFFORT_TEXT = {"current": "a motor current (follows gravity / drive gain)",
+                "torque": "a full joint torque (follows gravity)",
+                "compensated": "a gravity-compensated torque (near zero against gravity)"}
+
+
+def _nominal_gravity(spec, q: np.ndarray) -> np.ndarray:
+    from urident.model.regressor import joint_torques
+
+    zero = np.zeros_like(q)
+    return joint_torques(spec, spec.nominal_params, q, zero, zero)
+
+
+def effort_meaning(spec, q: np.ndarray, qd: np.ndarray, effort: np.ndarray) -> tuple[str | None, str]:
+    """What an (N, 6) effort holds, judged on joints 2-3 at standstill against the nominal
+    model's gravity torque G: a motor current follows G / drive gain, a full torque follows G, a
+    gravity-compensated torque stays near zero. Returns (``current`` / ``torque`` /
+    ``compensated``, the figures) or (None, why it cannot tell: no standstill, no gravity load,
+    or joints that disagree)."""
+    if not np.any(effort):  # a driver that lists the field but never fills it
+        return None, "every effort is zero"
+    still = np.max(np.abs(qd), axis=1) < STANDSTILL_RAD_S
+    if int(still.sum()) < MIN_STANDSTILL:
+        return None, f"fewer than {MIN_STANDSTILL} messages at standstill (|qd| < {STANDSTILL_RAD_S} rad/s)"
+    index = np.flatnonzero(still)
+    index = index[np.linspace(0, index.size - 1, min(index.size, 400)).astype(int)]
+    g = _nominal_gravity(spec, q[index])
+    stretched = np.abs(_nominal_gravity(spec, np.zeros((1, N_JOINTS)))[0])
+    gains = np.asarray(spec.drive_gains, dtype=float)
+    joints = [j for j in (1, 2) if np.mean(np.abs(g[:, j])) >= GRAVITY_SHARE * stretched[j]]
+    if not joints:
+        return None, (f"no gravity load on joints 2-3 at standstill ({int(still.sum())} messages; "
+                      f"under {GRAVITY_SHARE:.0%} of the arm stretched horizontal)")
+    kinds, parts = [], []
+    for j in joints:
+        e = effort[index, j]
+        scale = float(e @ g[:, j] / (g[:, j] @ g[:, j]))
+        as_current = scale * gains[j]
+        lo, hi = FOLLOWS_GRAVITY
+        if lo <= as_current <= hi:
+            kinds.append("current")
+        elif lo <= scale <= hi:
+            kinds.append("torque")
+        elif abs(scale) < COMPENSATED_SCALE and not AMBIGUOUS[0] <= as_current <= AMBIGUOUS[1]:
+            kinds.append("compensated")
+        else:
+            kinds.append(None)
+        parts.append(f"joint {j + 1}: mean effort {np.mean(e):.4g} against nominal gravity "
+                     f"{np.mean(g[:, j]):.4g} N·m (effort/gravity {scale:.3g}, x drive gain "
+                     f"{as_current:.3g})")
+    figures = f"{int(still.sum())} messages at standstill; " + ", ".join(parts)
+    if None in kinds or len(set(kinds)) > 1:
+        return None, figures + "; neither current, full nor compensated torque"
+    return kinds[0], figures
+
+
 # --------------------------------------------------------------------------------------- output
 def write_bag(
     recording: Recording,
@@ -529,11 +631,13 @@ def write_bag(
     effort: str = "current",
     storage: str = "mcap",
     tf_prefix: str = "",
+    values: np.ndarray | None = None,
 ) -> Path:
     """Write ``recording`` as a rosbag2 directory ``out`` (must not exist): one JointState per
     sample on ``topic`` (stamp = log time, names = ``tf_prefix`` + UR's joint names, effort =
-    current or, with ``effort="torque"``, ``recording.tau``), and the safety and robot modes the
-    log carries on ``/io_and_status_controller/…``. Returns ``out``."""
+    ``values`` (N, 6) if given, else the current or, with ``effort`` torque or compensated,
+    ``recording.tau``), and the safety and robot modes the log carries on
+    ``/io_and_status_controller/…``. Returns ``out``."""
     rosbag2, typesys = _rosbags()
     store = _typestore(typesys)
     out = Path(out)
@@ -541,7 +645,7 @@ def write_bag(
         raise LogFormatError(f"effort {effort!r}: expected one of {', '.join(EFFORTS)}")
     if storage not in STORAGES:
         raise LogFormatError(f"storage {storage!r}: expected one of {', '.join(STORAGES)}")
-    eff = recording.current if effort == "current" else recording.tau
+    eff = values if values is not None else recording.current if effort == "current" else recording.tau
     if eff is None:
         raise LogFormatError(f"{recording.source}: the log carries no joint torque")
     names = [f"{tf_prefix}{n}" for n in ur_joint_names(joint_names)]

@@ -22,7 +22,7 @@ class LogField:
     """One logical log field (one or six CSV columns)."""
 
     name: str  #: ur_rtde output name, used in the CSV header
-    width: int  #: 1 (scalar) or 6 (one value per joint)
+    width: int  #: 1 (scalar), 3 (a base-frame vector) or 6 (one value per joint)
     dtype: str  #: "float" or "int"
     unit: str  #: SI unit (°C for temperatures, as the controller reports them), "" for codes
     attr: str  #: attribute of :class:`urident.logs.Recording` that holds it
@@ -69,7 +69,10 @@ LOG_FIELDS: tuple[LogField, ...] = (
 
 #: Fields the loaders also map when present but the writer does not write by default.
 OPTIONAL_FIELDS: tuple[LogField, ...] = (
-    LogField("actual_current_as_torque", 6, "float", "N*m", "tau", 1e4, "joint torques"),
+    LogField("actual_current_as_torque", 6, "float", "N*m", "tau", 1e4,
+             "joint torques, gravity-compensated by the controller (docs/signals.md)"),
+    LogField("target_gravity", 3, "float", "m/s^2", "target_gravity", 1e3,
+             "gravity vector of the controller, base frame (docs/signals.md)"),
 )
 
 ALL_FIELDS: tuple[LogField, ...] = LOG_FIELDS + OPTIONAL_FIELDS

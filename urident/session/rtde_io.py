@@ -52,22 +52,37 @@ def payload_field_names(version: tuple[int, ...]) -> list[str]:
             if version[0] >= 10 or (version[0] in since and tuple(version) >= since[version[0]])]
 
 
-# The joint torque output (UR's RTDE guide: actual_current_as_torque, PolyScope 5.23 / 10.10 on).
+# The joint torque output: actual_current_as_torque, gravity-compensated (docs/signals.md), from
+# PolyScope 5.23.0 / 10.11.0 (UR's ROS 2 driver, PR #1551, checks exactly these versions).
 TORQUE_FIELD = "actual_current_as_torque"
-TORQUE_FIELD_SINCE = {5: (5, 23), 10: (10, 10)}
+TORQUE_FIELD_SINCE = {5: (5, 23), 10: (10, 11)}
+# The gravity vector the controller uses (3 values, base frame), from 5.26.0 / 10.12.0
+# (Universal_Robots_Client_Library PR #420).
+GRAVITY_FIELD = "target_gravity"
+GRAVITY_FIELD_SINCE = {5: (5, 26), 10: (10, 12)}
+
+
+def _published(version: tuple[int, ...], since: dict[int, tuple[int, int]]) -> bool:
+    """Whether a controller of ``version`` publishes a field first published at ``since``
+    (per major version; majors above the last listed count as it)."""
+    if not version:
+        return False
+    first = since.get(version[0])
+    if first is None and version[0] > max(since):
+        first = since[max(since)]
+    return first is not None and tuple(version) >= first
 
 
 def log_field_names(version: tuple[int, ...]) -> list[str]:
     """The log fields to record from a controller of ``version``: urident.logs.LOG_FIELDS, plus
-    the joint torques where that version publishes them."""
+    the joint torques and the gravity vector where that version publishes them."""
     from urident.logs import LOG_FIELDS
 
     names = [f.name for f in LOG_FIELDS]
-    since = TORQUE_FIELD_SINCE.get(version[0]) if version else None
-    if since is None and version and version[0] > 10:
-        since = TORQUE_FIELD_SINCE[10]
-    if since is not None and tuple(version) >= since:
+    if _published(version, TORQUE_FIELD_SINCE):
         names.insert(names.index("actual_current") + 1, TORQUE_FIELD)
+    if _published(version, GRAVITY_FIELD_SINCE):
+        names.append(GRAVITY_FIELD)
     return names
 
 

@@ -45,7 +45,8 @@ OUTPUT_FIELDS: dict[str, FieldInfo] = {
     "actual_qd": FieldInfo(_V6D),
     "actual_current": FieldInfo(_V6D),
     "actual_current_window": FieldInfo(_V6D),
-    "actual_current_as_torque": FieldInfo(_V6D, None, (5, 23)),
+    "actual_current_as_torque": FieldInfo(_V6D, None, (5, 23)),   # 10.11 on PolyScope X
+    "target_gravity": FieldInfo(_V3D, None, (5, 26)),             # 10.12 on PolyScope X
     "joint_control_output": FieldInfo(_V6D),
     "actual_TCP_pose": FieldInfo(_V6D),
     "actual_TCP_speed": FieldInfo(_V6D),

@@ -19,7 +19,10 @@ differ from the truth: ``actual_q`` is quantized (``position_quantum_rad``), ``a
 Gaussian noise (``current_noise_a``) from a seeded generator.
 
 Torque: ``τ = TorqueModel.torque(q, q̇, q̈) + effects.extra_torque(t, q, q̇, q̈, τ_model, T)``; current
-``i = τ / drive_gains``; measured current ``effects.measure_current(t, i + noise, q, q̇, T)``. Both
+``i = τ / drive_gains``; measured current ``effects.measure_current(t, i + noise, q, q̇, T)``.
+The compensated torque (RTDE actual_current_as_torque, UR's definition: docs/signals.md) is the
+measured current times the drive gains minus the controller's gravity torque: the arm model's
+``TorqueModel.torque(q, 0, 0)`` plus the declared payload's; zero at rest without external load. Both
 hooks are optional methods of the ``effects`` object (see :class:`PlantEffects`). Joint temperatures
 relax towards ``ambient + heating_c_per_nm·|τ|`` with time constant ``thermal_time_constant_s``.
 """
@@ -144,6 +147,7 @@ class Plant:
         self.current = np.zeros(N_JOINTS)            # true motor current [A]
         self.target_current = np.zeros(N_JOINTS)     # model current (feed-forward) [A]
         self.measured_current = np.zeros(N_JOINTS)
+        self.compensated_torque = np.zeros(N_JOINTS)  # actual_current_as_torque [N·m]
         self.measured_q = self.q.copy()
         self._update_torques()
 
@@ -248,12 +252,16 @@ class Plant:
                              inertia_matrix(i6[:3], i6[3:]))
         self.declared_payload = p78[TOOL_BODY]
 
-    def _declared_torque(self, q, qd, qdd) -> np.ndarray:
+    def _declared_torque(self, q, qd, qdd) -> tuple[np.ndarray, np.ndarray]:
+        """The declared payload's torque at (q, q̇, q̈) and its gravity torque at q."""
         from urident.model import regressor_blocks
         from urident.model.parameters import TOOL_BODY
 
-        blocks = regressor_blocks(self.spec, q[None, :], qd[None, :], qdd[None, :])
-        return blocks[0][:, TOOL_BODY] @ self.declared_payload
+        zero = np.zeros_like(q)
+        blocks = regressor_blocks(self.spec, np.stack([q, q]), np.stack([qd, zero]),
+                                  np.stack([qdd, zero]))
+        torque = blocks[:, :, TOOL_BODY] @ self.declared_payload
+        return torque[0], torque[1]
 
     def _update_torques(self) -> None:
         t, q, qd, qdd = self.t, self.q, self.qd, self.qdd
@@ -264,14 +272,19 @@ class Plant:
                 self._extra_torque(t, q, qd, qdd, tau_model, self.temperatures), dtype=float)
         self.tau_model, self.tau = tau_model, tau
         self.target_moment = tau_model
+        zero = np.zeros(N_JOINTS)
+        gravity = np.asarray(self.torque_model.torque(q, zero, zero), dtype=float)
         if self.declared_payload is not None:   # the controller's model carries what it was told
-            self.target_moment = tau_model + self._declared_torque(q, qd, qdd)
+            declared, declared_gravity = self._declared_torque(q, qd, qdd)
+            self.target_moment = tau_model + declared
+            gravity = gravity + declared_gravity
         self.target_current = self.target_moment / self.drive_gains
         self.current = tau / self.drive_gains
         measured = self.current + self.rng.normal(0.0, self.current_noise_a, N_JOINTS)
         if self._measure_current is not None:
             measured = np.asarray(self._measure_current(t, measured, q, qd, self.temperatures), dtype=float)
         self.measured_current = measured
+        self.compensated_torque = measured * self.drive_gains - gravity
         quantum = self.position_quantum_rad
         self.measured_q = np.round(q / quantum) * quantum if quantum > 0 else q.copy()
         equilibrium = self.ambient_temperature_c + self.heating_c_per_nm * np.abs(tau)

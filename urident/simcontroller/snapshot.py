@@ -49,8 +49,13 @@ class Snapshot:
          self.target_current, self.target_moment, self.joint_control_output,
          self.actual_current_as_torque, self.joint_temperatures) = np.stack([
             p.measured_q, p.q, p.qd, p.qdd, p.measured_current, p.target_current, p.target_moment,
-            p.current, p.measured_current * p.drive_gains, p.temperatures]).tolist()
+            p.current, p.compensated_torque, p.temperatures]).tolist()
         self.target_qd = self.actual_qd
+
+    @property
+    def target_gravity(self):
+        # UR's set_gravity convention (pointing away from the Earth's centre); sign unconfirmed
+        return (-np.asarray(self._p.spec.gravity, dtype=float)).tolist()
 
     @property
     def actual_current_window(self):
