@@ -41,8 +41,10 @@ def gaz_data(spec):
 
 def test_joint_extras_columns_and_params_roundtrip(spec, tmp_path, gaz_data):
     m = ModelConfig(reduced=True, coulomb="dahl", dahl_rad=2e-4, dahl_source="velocity",
+                    joint_coulomb=("tanh", "dahl@2e-4", "dahl@5e-5", "tanh", "tanh", "dahl@0.0002"),
                     joint_extras=((), ("load",), (), (), ("sigmoid@0.05", "sigoffset@0.050"), ("dahl@1e-3",)))
     assert m.joint_extras[4] == ("sigmoid@0.05", "sigoffset@0.05")   # canonical spelling
+    assert m.joint_coulomb[1] == "dahl@0.0002"
     names = column_names(spec, m)
     nb = base_for(spec, True).n_base
     assert names[nb:] == ["fcl2", "fg5@0.05", "fgo5@0.05", "fh6@0.001"]
@@ -62,6 +64,12 @@ def test_joint_extras_columns_and_params_roundtrip(spec, tmp_path, gaz_data):
     assert back.model == m and back.names == fitted.names and back.kinds == fitted.kinds
 
 
+@pytest.mark.parametrize("bad_coulomb", [("tanh",) * 5, ("dahl",) * 6, ("hold",) * 6, ("dahl@0",) * 6])
+def test_joint_coulomb_rejects_bad_states(bad_coulomb):
+    with pytest.raises(ConfigError):
+        ModelConfig(joint_coulomb=bad_coulomb)
+
+
 @pytest.mark.parametrize("bad", [((),) * 5, (("nope",),) + ((),) * 5, (("load@2",),) + ((),) * 5,
                                  (("sigmoid@-1",),) + ((),) * 5, (("load", "load"),) + ((),) * 5])
 def test_joint_extras_rejects_bad_terms(bad):
@@ -71,7 +79,7 @@ def test_joint_extras_rejects_bad_terms(bad):
 
 def test_selection_finds_the_joint_with_asymmetric_friction_and_its_cv_is_exact(spec, gaz_data):
     sel = select_friction(spec, gaz_data, ModelConfig(reduced=True), folds=4, dahl_grid=(2e-4,))
-    assert sel.model.coulomb == "tanh"            # the data have no presliding memory
+    assert sel.model.joint_coulomb == ("tanh",) * 6     # the data have no presliding memory
     chosen = [set(t.split("@")[0] for t in terms) for terms in sel.model.joint_extras]
     assert chosen[4] & {"sigoffset", "asym", "offset"}     # the asymmetry is carried on joint 5
     assert "load" in chosen[1]
@@ -81,7 +89,7 @@ def test_selection_finds_the_joint_with_asymmetric_friction_and_its_cv_is_exact(
     np.testing.assert_allclose([j.rms for j in sel.joints], cv.rms_nm, rtol=1e-6)
     assert sel.joints[4].rms < 0.8 * sel.joints[4].steps[0].rms_before
     text = sel.text()
-    assert "J5:" in text and "tried per joint" in text and "sigmoid+offset eps=0.05" in text
+    assert "J5: tanh;" in text and "tried per joint" in text and "sigmoid+offset eps=0.05" in text
 
 
 def test_cli_preset_auto(spec, tmp_path, capsys):

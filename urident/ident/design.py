@@ -64,6 +64,8 @@ class ModelConfig:
     dahl_source: str = "position"   # Dahl displacement from 'position' (q) or 'velocity' (∫q̇ dt)
     # per joint (6 tuples, or empty): friction terms of that joint only, 'name' or 'name@value'
     joint_extras: tuple[tuple[str, ...], ...] = ()
+    # per joint (6 entries, or empty): that joint's Coulomb state, 'tanh' or 'dahl@delta' (instead of coulomb)
+    joint_coulomb: tuple[str, ...] = ()
 
     def friction_summary(self) -> str:
         """The friction model in one phrase, for reports: ``tanh friction, eps = 0.01 rad/s``."""
@@ -74,6 +76,8 @@ class ModelConfig:
         else:
             text = f"hold friction, v_hold = {self.hold_velocity:g} rad/s"
         text += f" + {', '.join(self.extras)}" if self.extras else ""
+        if self.joint_coulomb:
+            text += "; Coulomb state per joint: " + ", ".join(self.joint_coulomb)
         if self.joint_extras:
             text += "; per joint: " + "; ".join(f"J{j + 1} {'+'.join(t) or '-'}"
                                                 for j, t in enumerate(self.joint_extras))
@@ -108,11 +112,25 @@ class ModelConfig:
             if clash:
                 raise ConfigError(f"joint_extras of joint {j + 1}: {clash[0]!r} is already in extras")
         object.__setattr__(self, "joint_extras", joint)
+        states = tuple(str(c) for c in self.joint_coulomb)
+        if states and len(states) != 6:
+            raise ConfigError(f"joint_coulomb needs one state per joint (6), not {len(states)}")
+        canon = []
+        for j, c in enumerate(states):
+            if c == "tanh":
+                canon.append(c)
+                continue
+            name, value = parse_term(c) if c.startswith("dahl@") else (c, None)
+            if name != "dahl" or value is None:
+                raise ConfigError(f"joint_coulomb of joint {j + 1}: {c!r} is not 'tanh' or 'dahl@DELTA'")
+            canon.append(term_text(name, value))
+        object.__setattr__(self, "joint_coulomb", tuple(canon))
 
     def as_dict(self) -> dict:
         d = asdict(self)
         d["extras"] = list(self.extras)
         d["joint_extras"] = [list(t) for t in self.joint_extras]
+        d["joint_coulomb"] = list(self.joint_coulomb)
         return d
 
     @classmethod
@@ -129,6 +147,11 @@ class ModelConfig:
             if not isinstance(rows, (list, tuple)) or not all(isinstance(r, (list, tuple)) for r in rows):
                 raise ConfigError(f"{where}: joint_extras must be a list of six lists of terms")
             kw["joint_extras"] = tuple(tuple(str(t) for t in r) for r in rows)
+        if "joint_coulomb" in kw:
+            states = kw["joint_coulomb"] or ()
+            if not isinstance(states, (list, tuple)):
+                raise ConfigError(f"{where}: joint_coulomb must be a list of six states")
+            kw["joint_coulomb"] = tuple(str(c) for c in states)
         return cls(**kw)
 
 
@@ -221,6 +244,7 @@ def _dahl_deltas(config: ModelConfig) -> list[float]:
     """Every presliding distance the model's columns need (its Coulomb state, extras, joint terms)."""
     out = [config.dahl_rad] if config.coulomb == "dahl" or "dahl" in config.extras else []
     out += [config.dahl_rad if v is None else v for _, x, v in config.joint_terms() if x == "dahl"]
+    out += [parse_term(c)[1] for c in config.joint_coulomb if c != "tanh"]
     return out
 
 
@@ -255,6 +279,9 @@ def design_blocks(spec, config: ModelConfig, q, qd, qdd, segment=None, t=None,
         blocks[:, joints, COULOMB_OFFSET + joints] = dahl[config.dahl_rad]
     elif config.coulomb == "hold":
         blocks[:, joints, COULOMB_OFFSET + joints] = _hold(config, qd, segment, state)
+    for j, c in enumerate(config.joint_coulomb):
+        blocks[:, j, COULOMB_OFFSET + j] = (np.tanh(qd[:, j] / config.friction_eps) if c == "tanh"
+                                            else dahl[parse_term(c)[1]][:, j])
     z = blocks[:, joints, COULOMB_OFFSET + joints]   # the Coulomb state, (N, 6)
     load = functools.cache(lambda: nominal_link_torque(spec, blocks))
     out = [blocks[:, :, base.independent]]

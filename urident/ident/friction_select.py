@@ -45,7 +45,6 @@ DAHL_GRID = (5e-5, 7e-5, 1e-4, 1.5e-4, 2e-4, 3e-4, 5e-4)   # [rad] presliding di
 # what the model does at stops (it drops the friction there), which excitation runs cannot score
 SIGMOID_EPS = (0.05, 0.2)
 STRIBECK_VS = (0.02, 0.05, 0.1)       # [rad/s]
-DAHL_TERM_RAD = (1e-4, 3e-4, 1e-3)    # [rad] a presliding state of the joint's own
 HARMONICS = (1, 2, 3)                 # periods per joint revolution
 MIN_T = 2.0          # mean fold gain / its standard error (≈ 95 % one-sided with 5 folds)
 MIN_GAIN = 0.005     # relative held-out RMS decrease of the joint
@@ -70,7 +69,6 @@ def family(base: ModelConfig) -> tuple[Term, ...]:
     terms += [Term(f"Stribeck vs={v:g}", (f"stribeck@{v:g}",)) for v in STRIBECK_VS]
     terms += [Term("sqrt viscous", ("sqrtvisc",)), Term("quadratic viscous", ("quadvisc",)),
               Term("load Coulomb", ("load",))]
-    terms += [Term(f"Dahl delta={d:g}", (f"dahl@{d:g}",)) for d in DAHL_TERM_RAD]
     terms += [Term(f"position k={k}", (f"poscos@{k}", f"possin@{k}")) for k in HARMONICS]
     out = []
     for t in terms:
@@ -84,8 +82,6 @@ def _same_as_coulomb(base: ModelConfig, feature: str) -> bool:
     name, value = parse_term(feature)
     if base.coulomb == "tanh" and name == "sigmoid":
         return np.isclose(value, base.friction_eps)
-    if base.coulomb == "dahl" and name == "dahl":
-        return np.isclose(value, base.dahl_rad)
     return False
 
 
@@ -105,19 +101,20 @@ class Step:
 
 @dataclass(frozen=True)
 class JointChoice:
-    steps: tuple[Step, ...]          # terms added, in order
+    coulomb: str                     # the joint's Coulomb state: 'tanh' or 'dahl@delta'
+    steps: tuple[Step, ...]          # terms added on that state, in order
     rejected: Step | None            # the best term of the last round, which did not pass
-    rms: float                       # held-out RMS of the joint with its chosen terms [N·m]
+    rms: float                       # held-out RMS of the joint in the chosen model [N·m]
 
 
 @dataclass(frozen=True)
 class FrictionSelection:
-    """The chosen model (``model``), per joint what was added and what was not, and the base
-    Coulomb states compared (label → mean held-out RMS over joints of its selected model)."""
+    """The chosen model (``model``), per joint its Coulomb state, what was added and what was
+    not, and the Coulomb states compared (label → (6,) held-out RMS per joint after selection)."""
 
     model: ModelConfig
     joints: tuple[JointChoice, ...]
-    bases: tuple[tuple[str, float], ...]
+    bases: tuple[tuple[str, np.ndarray], ...]
     family: tuple[str, ...]
     folds: int
 
@@ -129,22 +126,22 @@ class FrictionSelection:
         lines = [f"friction terms chosen per joint by {self.folds}-fold blocked CV on the identification "
                  f"data (a term kept when its fold gains have mean > {MIN_T:g} standard errors and the "
                  f"joint's held-out RMS falls >= {100 * MIN_GAIN:g} %)",
-                 "  Coulomb state of the base, mean held-out RMS [N·m] after selection: "
-                 + ", ".join(f"{b}: {s:.3f}" for b, s in self.bases),
-                 f"  tried per joint: {'; '.join(self.family)}"]
+                 f"  terms tried per joint: {'; '.join(self.family)}",
+                 "  Coulomb states tried, each joint's held-out RMS [N·m] after its selection (the lowest is kept):"]
+        lines += [f"    {b:<18}" + " ".join(f"{v:6.3f}" for v in r) for b, r in self.bases]
         for j, c in enumerate(self.joints):
             chosen = ", ".join(f"{s.term} ({s.rms_before:.3f} -> {s.rms_after:.3f}, -{s.gain_pct:.1f} %, "
                                f"t {s.t_stat:.1f})" for s in c.steps) or "none"
             rej = ("" if c.rejected is None else
                    f"; best rejected: {c.rejected.term} ({-c.rejected.gain_pct:+.1f} %, t {c.rejected.t_stat:.1f})")
-            lines.append(f"  J{j + 1}: {chosen}{rej}; CV RMS {c.rms:.3f}")
+            lines.append(f"  J{j + 1}: {c.coulomb}; {chosen}{rej}; CV RMS {c.rms:.3f}")
         lines.append(f"  mean CV RMS {self.mean_rms_nm:.3f} N·m")
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
         return {"model": self.model.as_dict(), "folds": self.folds, "family": list(self.family),
-                "bases": {b: s for b, s in self.bases}, "mean_cv_rms_nm": self.mean_rms_nm,
-                "joints": [{"terms": [s.term for s in c.steps], "cv_rms_nm": c.rms,
+                "bases": {b: [float(v) for v in r] for b, r in self.bases}, "mean_cv_rms_nm": self.mean_rms_nm,
+                "joints": [{"coulomb": c.coulomb, "terms": [s.term for s in c.steps], "cv_rms_nm": c.rms,
                             "steps": [vars(s) | {"gain_pct": s.gain_pct} for s in c.steps],
                             "rejected": None if c.rejected is None else c.rejected.term}
                            for c in self.joints]}
@@ -300,7 +297,7 @@ def _select(fac: _Factors, terms: tuple[Term, ...]) -> tuple[list[list[str]], li
             steps[j].append(step)
     sq = fac.held_out(sels)
     rms = np.sqrt(sq.sum(axis=0) / n)
-    return sels, [JointChoice(tuple(steps[j]), rejected[j], float(rms[j])) for j in range(6)]
+    return sels, [(tuple(steps[j]), rejected[j], float(rms[j])) for j in range(6)]
 
 
 def base_models(model: ModelConfig, dahl_grid=DAHL_GRID) -> list[tuple[str, ModelConfig]]:
@@ -320,19 +317,27 @@ def select_friction(spec, data: Prepared, model: ModelConfig | None = None, fold
     friction extras are replaced by the choice. Weighting: per joint (``'joint'``)."""
     from urident.progress import Progress
 
+    from urident.ident.crossval import cross_validate
+
     model = model or ModelConfig(reduced=True)
     bases = base_models(model, dahl_grid)
     results = []
-    with Progress("friction selection (base models)", len(bases)) as progress:
+    with Progress("friction selection (Coulomb states)", len(bases)) as progress:
         for label, base in bases:
             terms = family(base)
             fac = _Factors(spec, base, terms, data, folds)
             with one_blas_thread():
                 sels, joints = _select(fac, terms)
-            results.append((label, base, terms, sels, joints))
+            results.append((label, base, sels, joints))
             progress.advance(1)
-    scores = [float(np.mean([j.rms for j in r[4]])) for r in results]
-    label, base, terms, sels, joints = results[int(np.argmin(scores))]
-    chosen = replace(base, joint_extras=tuple(tuple(s) for s in sels))
-    return FrictionSelection(chosen, tuple(joints), tuple(zip([r[0] for r in results], scores)),
-                             tuple(t.label for t in terms), folds)
+    rms = np.array([[j[2] for j in r[3]] for r in results])     # (bases, 6)
+    pick = np.argmin(rms, axis=0)
+    states = tuple("tanh" if results[b][1].coulomb == "tanh" else f"dahl@{results[b][1].dahl_rad:g}"
+                   for b in pick)
+    chosen = replace(model, coulomb="tanh", dahl_source="velocity", extras=(),
+                     joint_coulomb=states, joint_extras=tuple(tuple(results[b][2][j]) for j, b in enumerate(pick)))
+    # the joints' states come from different runs: the model they make is scored as a whole
+    final = cross_validate(spec, data, chosen, "joint", "ols", folds).rms_nm
+    joints = tuple(JointChoice(states[j], *results[b][3][j][:2], float(final[j])) for j, b in enumerate(pick))
+    return FrictionSelection(chosen, joints, tuple((r[0], rms[k]) for k, r in enumerate(results)),
+                             tuple(t.label for t in family(bases[0][1])), folds)

@@ -22,6 +22,8 @@ def comparison_report(models: Mapping[str, object], validations: Mapping[str, ob
                  + (f" (dahl {first.model.dahl_rad:g} rad from {first.model.dahl_source})"
                     if first.model.coulomb == "dahl" or "dahl" in first.model.extras else "")
                  + f", extras {','.join(first.model.extras) or 'none'}, "
+                 + ("Coulomb per joint " + ",".join(first.model.joint_coulomb) + ", "
+                    if first.model.joint_coulomb else "")
                  + ("per-joint terms " + "; ".join(f"J{j + 1} {'+'.join(t) or '-'}"
                                                    for j, t in enumerate(first.model.joint_extras)) + ", "
                     if first.model.joint_extras else "")
