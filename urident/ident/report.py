@@ -18,12 +18,11 @@ def comparison_report(models: Mapping[str, object], validations: Mapping[str, ob
     first = next(iter(models.values()))
     lines.append(f"robot {first.robot}, model {'reduced' if first.model.reduced else 'full'} "
                  f"({len(first.names)} parameters), friction eps {first.model.friction_eps:g} rad/s, "
-                 f"coulomb {first.model.coulomb}"
+                 + (f"coulomb {first.model.coulomb}" if not first.model.joint_coulomb else
+                    "coulomb per joint " + ",".join(first.model.joint_coulomb))
                  + (f" (dahl {first.model.dahl_rad:g} rad from {first.model.dahl_source})"
                     if first.model.coulomb == "dahl" or "dahl" in first.model.extras else "")
                  + f", extras {','.join(first.model.extras) or 'none'}, "
-                 + ("Coulomb per joint " + ",".join(first.model.joint_coulomb) + ", "
-                    if first.model.joint_coulomb else "")
                  + ("per-joint terms " + "; ".join(f"J{j + 1} {'+'.join(t) or '-'}"
                                                    for j, t in enumerate(first.model.joint_extras)) + ", "
                     if first.model.joint_extras else "")
