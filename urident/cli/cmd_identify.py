@@ -10,7 +10,10 @@ from urident.cli import options
 
 
 PRESET_HELP = ("named configuration: 'paper' (the paper's method: full base set, tanh friction, plain "
-               "least squares) or 'real-robot' (urident's best on real UR logs: reduced base set, "
+               "least squares); 'auto' (reduced base set, per-joint weighting, a Dahl presliding "
+               "Coulomb state, and each joint's friction terms chosen from a family of published forms "
+               "by 5-fold blocked cross-validation on the identification logs; the report lists the "
+               "terms, their gains and what was tried); or 'real-robot' (one fixed set of terms chosen on a real UR10e: reduced base set, "
                "per-joint weighting, Dahl presliding friction state driven by the integrated "
                "velocity with its distance chosen by 5-fold blocked cross-validation on the "
                "identification data, load-dependent Coulomb, square-root viscous and Stribeck friction; "
@@ -21,7 +24,7 @@ PRESET_HELP = ("named configuration: 'paper' (the paper's method: full base set,
 
 def add_model_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("model and estimation")
-    g.add_argument("--preset", "--model", dest="preset", choices=("paper", "real-robot", "best"),
+    g.add_argument("--preset", "--model", dest="preset", choices=("paper", "auto", "real-robot", "best"),
                    default=None, help=PRESET_HELP + " ('--model best' is an alias of real-robot)")
     g.add_argument("--reduced", action="store_true", default=None,
                    help="the paper's reduced model (33 base parameters) instead of the full one (52)")
@@ -138,6 +141,11 @@ def model_config(args: argparse.Namespace):
 
     name = preset_name(args)
     preset = get_preset(name) if name else None
+    if preset and preset.select_friction:
+        given = [flag for attr, flag in _AUTO_CONFLICTS if getattr(args, attr, None) is not None]
+        if given:
+            raise ConfigError(f"{given[0]} conflicts with --preset auto, which chooses the friction "
+                              "terms and weighting itself from the identification logs")
     base = preset.model if preset else ModelConfig()
     weighting = args.weighting or (preset.weighting if preset else "none")
     select = bool(preset and preset.select_dahl_rad)
@@ -163,6 +171,11 @@ def model_config(args: argparse.Namespace):
     return model, weighting, select
 
 
+_AUTO_CONFLICTS = (("coulomb", "--coulomb"), ("hold_velocity", "--hold-velocity"), ("dahl_rad", "--dahl-rad"),
+                   ("dahl_source", "--dahl-source"), ("friction_extra", "--friction-extra"),
+                   ("stribeck_vs", "--stribeck-vs"), ("weighting", "--weighting"))
+
+
 def sibling(path: Path, method: str) -> Path:
     return path.with_name(f"{path.stem}.{method}{path.suffix or '.yaml'}")
 
@@ -171,6 +184,7 @@ def run(args: argparse.Namespace) -> int:
     from urident.errors import ConfigError
     from urident.ident import identify_all, prepare, save_params
     from urident.ident.estimate_consistent import DEFAULT_REGULARISATION
+    from urident.ident.presets import get_preset
     from urident.ident.report import comparison_report
     from urident.ident.torque import resolve_drive_gains
     from urident.ident.report import logs_used
@@ -216,7 +230,14 @@ def run(args: argparse.Namespace) -> int:
 
         data = without_payload(spec, payload, data)
     cv_text = ""
-    if select:
+    name = preset_name(args)
+    if name and get_preset(name).select_friction:
+        from urident.ident.friction_select import select_friction
+
+        selection = select_friction(spec, data, model)
+        model = selection.model
+        cv_text = selection.text()
+    elif select:
         from urident.ident.crossval import select_dahl_rad
         from urident.ident.presets import CV_FOLDS, DAHL_GRID
 

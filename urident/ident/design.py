@@ -16,11 +16,38 @@ import numpy as np
 
 from urident.errors import ConfigError, shown
 from urident.ident import features
-from urident.ident.friction import COULOMB_MODELS, DAHL_SOURCES, dahl_state, hold_state, velocity_displacement
-from urident.model.parameters import (COULOMB_OFFSET, EXTRA_COLUMNS, extra_column_names,
+from urident.ident.friction import COULOMB_MODELS, DAHL_SOURCES, dahl_states, hold_state, velocity_displacement
+from urident.model.parameters import (COULOMB_OFFSET, EXTRA_COLUMNS, extra_column_names, joint_column_name,
                                       nonnegative_parameters, parameter_kinds)
 
 EXTRA_FEATURES = tuple(EXTRA_COLUMNS)
+#: Per-joint terms that carry a parameter of their own (``sigmoid@0.05``): its meaning and unit;
+#: without one the model's (friction_eps, stribeck_vs, dahl_rad; harmonic 1) is used.
+TERM_PARAMETERS = {"sigmoid": "eps [rad/s]", "sigoffset": "eps [rad/s]", "stribeck": "v_s [rad/s]",
+                   "dahl": "delta [rad]", "poscos": "harmonic [-]", "possin": "harmonic [-]"}
+
+
+def parse_term(term: str) -> tuple[str, float | None]:
+    """``'sigmoid@0.05'`` → ('sigmoid', 0.05); ``'load'`` → ('load', None). ConfigError if unknown."""
+    name, sep, value = str(term).partition("@")
+    if name not in EXTRA_FEATURES:
+        raise ConfigError(f"friction feature {name!r} unknown (known: {', '.join(EXTRA_FEATURES)})")
+    if not sep:
+        return name, None
+    if name not in TERM_PARAMETERS:
+        raise ConfigError(f"friction feature {name!r} takes no parameter (given {term!r})")
+    try:
+        v = float(value)
+    except ValueError:
+        raise ConfigError(f"friction term {term!r}: {value!r} is not a number") from None
+    if not (np.isfinite(v) and v > 0):
+        raise ConfigError(f"friction term {term!r}: its parameter must be positive")
+    return name, v
+
+
+def term_text(name: str, value: float | None) -> str:
+    """The canonical spelling of a per-joint term (inverse of :func:`parse_term`)."""
+    return name if value is None else f"{name}@{value:g}"
 
 
 @dataclass(frozen=True)
@@ -35,6 +62,10 @@ class ModelConfig:
     extras: tuple[str, ...] = ()    # extra friction features: offset, stribeck, dahl, load, sqrtvisc
     stribeck_vs: float = 0.05       # [rad/s] Stribeck velocity
     dahl_source: str = "position"   # Dahl displacement from 'position' (q) or 'velocity' (∫q̇ dt)
+    # per joint (6 tuples, or empty): friction terms of that joint only, 'name' or 'name@value'
+    joint_extras: tuple[tuple[str, ...], ...] = ()
+    # per joint (6 entries, or empty): that joint's Coulomb state, 'tanh' or 'dahl@delta' (instead of coulomb)
+    joint_coulomb: tuple[str, ...] = ()
 
     def friction_summary(self) -> str:
         """The friction model in one phrase, for reports: ``tanh friction, eps = 0.01 rad/s``."""
@@ -44,7 +75,17 @@ class ModelConfig:
             text = f"Dahl friction, delta = {self.dahl_rad:g} rad from {self.dahl_source}"
         else:
             text = f"hold friction, v_hold = {self.hold_velocity:g} rad/s"
-        return text + (f" + {', '.join(self.extras)}" if self.extras else "")
+        text += f" + {', '.join(self.extras)}" if self.extras else ""
+        if self.joint_coulomb:
+            text += "; Coulomb state per joint: " + ", ".join(self.joint_coulomb)
+        if self.joint_extras:
+            text += "; per joint: " + "; ".join(f"J{j + 1} {'+'.join(t) or '-'}"
+                                                for j, t in enumerate(self.joint_extras))
+        return text
+
+    def joint_terms(self) -> list[tuple[int, str, float | None]]:
+        """(joint, feature, own parameter or None) of every per-joint term, in column order."""
+        return [(j, *parse_term(t)) for j, terms in enumerate(self.joint_extras) for t in terms]
 
     def __post_init__(self) -> None:
         if not self.friction_eps > 0:
@@ -61,10 +102,35 @@ class ModelConfig:
             raise ConfigError(f"dahl_source {self.dahl_source!r} unknown (known: {', '.join(DAHL_SOURCES)})")
         if not (self.dahl_rad > 0 and self.stribeck_vs > 0 and self.hold_velocity > 0):
             raise ConfigError("dahl_rad, stribeck_vs and hold_velocity must be positive")
+        joint = tuple(tuple(term_text(*parse_term(t)) for t in terms) for terms in self.joint_extras)
+        if joint and len(joint) != 6:
+            raise ConfigError(f"joint_extras needs one list per joint (6), not {len(joint)}")
+        for j, terms in enumerate(joint):
+            if len(set(terms)) != len(terms):
+                raise ConfigError(f"joint_extras of joint {j + 1}: a term repeated: {', '.join(terms)}")
+            clash = [t for t in terms if t in self.extras]
+            if clash:
+                raise ConfigError(f"joint_extras of joint {j + 1}: {clash[0]!r} is already in extras")
+        object.__setattr__(self, "joint_extras", joint)
+        states = tuple(str(c) for c in self.joint_coulomb)
+        if states and len(states) != 6:
+            raise ConfigError(f"joint_coulomb needs one state per joint (6), not {len(states)}")
+        canon = []
+        for j, c in enumerate(states):
+            if c == "tanh":
+                canon.append(c)
+                continue
+            name, value = parse_term(c) if c.startswith("dahl@") else (c, None)
+            if name != "dahl" or value is None:
+                raise ConfigError(f"joint_coulomb of joint {j + 1}: {c!r} is not 'tanh' or 'dahl@DELTA'")
+            canon.append(term_text(name, value))
+        object.__setattr__(self, "joint_coulomb", tuple(canon))
 
     def as_dict(self) -> dict:
         d = asdict(self)
         d["extras"] = list(self.extras)
+        d["joint_extras"] = [list(t) for t in self.joint_extras]
+        d["joint_coulomb"] = list(self.joint_coulomb)
         return d
 
     @classmethod
@@ -76,6 +142,16 @@ class ModelConfig:
         kw = dict(data)
         if "extras" in kw:
             kw["extras"] = tuple(kw["extras"] or ())
+        if "joint_extras" in kw:
+            rows = kw["joint_extras"] or ()
+            if not isinstance(rows, (list, tuple)) or not all(isinstance(r, (list, tuple)) for r in rows):
+                raise ConfigError(f"{where}: joint_extras must be a list of six lists of terms")
+            kw["joint_extras"] = tuple(tuple(str(t) for t in r) for r in rows)
+        if "joint_coulomb" in kw:
+            states = kw["joint_coulomb"] or ()
+            if not isinstance(states, (list, tuple)):
+                raise ConfigError(f"{where}: joint_coulomb must be a list of six states")
+            kw["joint_coulomb"] = tuple(str(c) for c in states)
         return cls(**kw)
 
 
@@ -97,6 +173,7 @@ def column_names(spec, config: ModelConfig) -> list[str]:
     names = list(base.names)
     for x in config.extras:
         names += extra_column_names(x)
+    names += [joint_column_name(x, j, v) for j, x, v in config.joint_terms()]
     return names
 
 
@@ -108,6 +185,7 @@ def column_kinds(spec, config: ModelConfig) -> list[str]:
     out = [kinds[k] for k in base.independent]
     for x in config.extras:
         out += [EXTRA_COLUMNS[x][1]] * 6
+    out += [EXTRA_COLUMNS[x][1] for _, x, _ in config.joint_terms()]
     return out
 
 
@@ -117,9 +195,16 @@ def column_expressions(spec, config: ModelConfig) -> list[str]:
     desc = {"offset": "constant torque offset", "stribeck": "Stribeck term tanh(qd/eps)*exp(-(qd/vs)^2)",
             "dahl": "Dahl hysteresis state",
             "load": "load-dependent Coulomb friction |tau_nominal|*z",
-            "sqrtvisc": "sub-linear viscous friction sign(qd)*sqrt(|qd|)"}
+            "sqrtvisc": "sub-linear viscous friction sign(qd)*sqrt(|qd|)",
+            "asym": "Coulomb asymmetry |z|", "sigmoid": "sigmoid Coulomb tanh(qd/eps)",
+            "sigoffset": "sigmoid offset tanh(qd/eps)^2", "quadvisc": "quadratic viscous qd*|qd|",
+            "poscos": "position-dependent friction z*cos(k*q)",
+            "possin": "position-dependent friction z*sin(k*q)"}
     for x in config.extras:
         expr += [f"{desc[x]} of joint {j + 1}" for j in range(6)]
+    for j, x, v in config.joint_terms():
+        expr.append(f"{desc[x]} of joint {j + 1}"
+                    + ("" if v is None else f" ({TERM_PARAMETERS[x].split()[0]} = {v:g})"))
     return expr
 
 
@@ -135,18 +220,32 @@ def nonnegative_mask(spec, config: ModelConfig) -> np.ndarray:
         mask.append(bool(np.all(nonneg_std[nz]) and np.all(row[nz] > 0)))
     for x in config.extras:
         mask += [x in features.NONNEGATIVE_EXTRAS] * 6
+    mask += [x in features.NONNEGATIVE_EXTRAS for _, x, _ in config.joint_terms()]
     return np.array(mask)
 
 
-def _dahl(config: ModelConfig, q, qd, t, segment, state: dict | None = None) -> np.ndarray:
-    initial = None if state is None else state.get("dahl")
-    if config.dahl_source == "velocity" and t is not None:
-        z = dahl_state(velocity_displacement(t, qd, segment), config.dahl_rad, segment, initial)
-    else:
-        z = dahl_state(q, config.dahl_rad, segment, initial)
+def _dahl(config: ModelConfig, deltas, q, qd, t, segment, state: dict | None = None) -> dict:
+    """{δ: (N, 6) Dahl state} for each presliding distance of ``deltas``, in one pass; ``state``
+    keeps each δ's state at the last sample (streams, chunks)."""
+    deltas = sorted({float(d) for d in deltas})
+    keys = [f"dahl@{d!r}" for d in deltas]
+    initial = None
+    if state is not None and all(k in state for k in keys):
+        initial = np.stack([state[k] for k in keys])
+    x = velocity_displacement(t, qd, segment) if config.dahl_source == "velocity" and t is not None else q
+    z = dahl_states(x, deltas, segment, initial)
     if state is not None:
-        state["dahl"] = z[-1].copy()
-    return z
+        for k, zk in zip(keys, z):
+            state[k] = zk[-1].copy()
+    return {d: np.ascontiguousarray(zk) for d, zk in zip(deltas, z)}
+
+
+def _dahl_deltas(config: ModelConfig) -> list[float]:
+    """Every presliding distance the model's columns need (its Coulomb state, extras, joint terms)."""
+    out = [config.dahl_rad] if config.coulomb == "dahl" or "dahl" in config.extras else []
+    out += [config.dahl_rad if v is None else v for _, x, v in config.joint_terms() if x == "dahl"]
+    out += [parse_term(c)[1] for c in config.joint_coulomb if c != "tanh"]
+    return out
 
 
 def _hold(config: ModelConfig, qd, segment, state: dict | None = None) -> np.ndarray:
@@ -174,29 +273,58 @@ def design_blocks(spec, config: ModelConfig, q, qd, qdd, segment=None, t=None,
     base = base_for(spec, config.reduced)
     blocks = regressor_blocks(spec, q, qd, qdd, config.friction_eps)
     joints = np.arange(6)
-    dahl = functools.cache(lambda: _dahl(config, q, qd, t, segment, state))  # once: it advances state
+    deltas = _dahl_deltas(config)
+    dahl = _dahl(config, deltas, q, qd, t, segment, state) if deltas else {}  # once: it advances state
     if config.coulomb == "dahl":
-        blocks[:, joints, COULOMB_OFFSET + joints] = dahl()
+        blocks[:, joints, COULOMB_OFFSET + joints] = dahl[config.dahl_rad]
     elif config.coulomb == "hold":
         blocks[:, joints, COULOMB_OFFSET + joints] = _hold(config, qd, segment, state)
+    for j, c in enumerate(config.joint_coulomb):
+        blocks[:, j, COULOMB_OFFSET + j] = (np.tanh(qd[:, j] / config.friction_eps) if c == "tanh"
+                                            else dahl[parse_term(c)[1]][:, j])
+    z = blocks[:, joints, COULOMB_OFFSET + joints]   # the Coulomb state, (N, 6)
+    load = functools.cache(lambda: nominal_link_torque(spec, blocks))
     out = [blocks[:, :, base.independent]]
     n = blocks.shape[0]
     for x in config.extras:
         extra = np.zeros((n, 6, 6))
-        if x == "offset":
-            values = features.offset((n, 6))
-        elif x == "stribeck":
-            values = features.stribeck(qd, config.friction_eps, config.stribeck_vs)
-        elif x == "load":
-            values = features.load_friction(nominal_link_torque(spec, blocks),
-                                            blocks[:, joints, COULOMB_OFFSET + joints])
-        elif x == "sqrtvisc":
-            values = features.sqrt_viscous(qd)
-        else:
-            values = dahl()
-        extra[:, joints, joints] = values
+        extra[:, joints, joints] = _feature(config, x, None, q, qd, z, load, dahl)
+        out.append(extra)
+    terms = config.joint_terms()
+    if terms:
+        extra = np.zeros((n, 6, len(terms)))
+        cache: dict = {}
+        for c, (j, x, v) in enumerate(terms):
+            key = (x, v)
+            if key not in cache:
+                cache[key] = _feature(config, x, v, q, qd, z, load, dahl)
+            extra[:, j, c] = cache[key][:, j]
         out.append(extra)
     return np.concatenate(out, axis=2)
+
+
+def _feature(config: ModelConfig, x: str, v: float | None, q, qd, z, load, dahl) -> np.ndarray:
+    """(N, 6) values of extra feature ``x`` (own parameter ``v`` or None) on every joint."""
+    if x == "offset":
+        return features.offset(z.shape)
+    if x == "stribeck":
+        return features.stribeck(qd, config.friction_eps, config.stribeck_vs if v is None else v)
+    if x == "load":
+        return features.load_friction(load(), z)
+    if x == "sqrtvisc":
+        return features.sqrt_viscous(qd)
+    if x == "dahl":
+        return dahl[config.dahl_rad if v is None else v]
+    if x == "asym":
+        return features.coulomb_asymmetry(z)
+    if x == "sigmoid":
+        return features.sigmoid(qd, config.friction_eps if v is None else v)
+    if x == "sigoffset":
+        return features.sigmoid_offset(qd, config.friction_eps if v is None else v)
+    if x == "quadvisc":
+        return features.quadratic_viscous(qd)
+    cos, sin = features.position_friction(q, z, 1.0 if v is None else v)
+    return cos if x == "poscos" else sin
 
 
 CHUNK_SAMPLES = 8192   # samples per regressor chunk: ≈ 8192·6·78·8 B = 31 MB of blocks at a time

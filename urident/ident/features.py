@@ -9,6 +9,13 @@ Each function returns the values of a column that is linear in its coefficient, 
 * :func:`sqrt_viscous`: sign(q̇)·sqrt(|q̇|), a concave (sub-linear) viscous term, as the lubricant
   film of a harmonic drive gives;
 * :func:`offset`: a constant (asymmetric Coulomb friction, current-sensor bias, static load);
+* :func:`coulomb_asymmetry`: |z|, a Coulomb level that differs between the two directions of
+  motion (z the Coulomb state; unlike an offset it vanishes where z does);
+* :func:`sigmoid`, :func:`sigmoid_offset`: tanh(q̇/ε) and tanh²(q̇/ε), together the linearised form
+  of Gaz et al.'s (RA-L 2019) sigmoid with a velocity offset (function docs);
+* :func:`quadratic_viscous`: q̇·|q̇|, a convex viscous term;
+* :func:`position_friction`: z·cos(k·q), z·sin(k·q), Coulomb friction varying with the position at
+  harmonic k (k periods per joint revolution);
 * :func:`link_torque`: the link-side rigid-body torque of a 78-vector (no rotor inertia, no
   friction), the τ_L of the identification model's load friction;
 * :func:`tool_body_regressor`, :func:`payload_torque`, :func:`payload_columns`: the torque of a
@@ -27,7 +34,7 @@ import numpy as np
 from urident.model.parameters import BODY_FIELDS, RIGID_BODY, TOOL_BODY, body_params
 
 #: Extra features whose coefficient must be >= 0 physically.
-NONNEGATIVE_EXTRAS = frozenset({"stribeck", "dahl", "load", "sqrtvisc"})
+NONNEGATIVE_EXTRAS = frozenset({"stribeck", "dahl", "load", "sqrtvisc", "quadvisc"})
 #: The first-moment entries (m·ρx, m·ρy, m·ρz) among a body's ten parameters.
 FIRST_MOMENTS = slice(BODY_FIELDS.index("mrx"), BODY_FIELDS.index("mrz") + 1)
 
@@ -50,6 +57,35 @@ def sqrt_viscous(qd: np.ndarray) -> np.ndarray:
 
 def offset(shape) -> np.ndarray:
     return np.ones(shape)
+
+
+def coulomb_asymmetry(coulomb_state: np.ndarray) -> np.ndarray:
+    """|z|: with the Coulomb column a·z, the level is a + b moving forwards and a − b backwards."""
+    return np.abs(coulomb_state)
+
+
+def sigmoid(qd: np.ndarray, eps: float) -> np.ndarray:
+    """tanh(q̇/ε): a Coulomb term with its own smoothness ε [rad/s] (Gaz et al.'s 2/φ2)."""
+    return np.tanh(np.asarray(qd, dtype=float) / eps)
+
+
+def sigmoid_offset(qd: np.ndarray, eps: float) -> np.ndarray:
+    """tanh²(q̇/ε). Gaz et al.'s φ1/(1 + e^{−φ2(q̇+φ3)}) − φ1/(1 + e^{−φ2 φ3}) is, with ε = 2/φ2,
+    (φ1/2)·[tanh((q̇+φ3)/ε) − tanh(φ3/ε)] ≈ (φ1/2)·tanh(q̇/ε) − (φ1 φ3/2ε)·tanh²(q̇/ε) to first
+    order in φ3/ε; both asymptotes (φ1(1 − σ(φ2φ3)) and −φ1 σ(φ2φ3)) are matched exactly."""
+    return np.tanh(np.asarray(qd, dtype=float) / eps) ** 2
+
+
+def quadratic_viscous(qd: np.ndarray) -> np.ndarray:
+    qd = np.asarray(qd, dtype=float)
+    return qd * np.abs(qd)
+
+
+def position_friction(q: np.ndarray, coulomb_state: np.ndarray, harmonic: float) -> tuple[np.ndarray, np.ndarray]:
+    """(z·cos(k q), z·sin(k q)): Coulomb friction modulated by the position ``q`` [rad] at harmonic
+    k (k periods per joint revolution), e.g. a flexspline's once- or twice-per-turn variation."""
+    arg = harmonic * np.asarray(q, dtype=float)
+    return coulomb_state * np.cos(arg), coulomb_state * np.sin(arg)
 
 
 def link_torque(blocks: np.ndarray, params: np.ndarray) -> np.ndarray:

@@ -1,4 +1,8 @@
-"""Named identification configurations: ``paper`` (the paper's method) and ``real-robot``.
+"""Named identification configurations: ``paper`` (the paper's method), ``real-robot`` and ``auto``.
+
+``auto``: the reduced base set, per-joint weighting, a Dahl presliding Coulomb state (driven by
+∫q̇, δ chosen by blocked CV) and each joint's friction terms chosen by blocked CV on the
+identification data given (:mod:`urident.ident.friction_select`): the same procedure on any arm.
 
 ``paper``: full base set (52 parameters), r_v·q̇ + r_c·tanh(q̇/ε) friction with ε = 0.01 rad/s,
 plain least squares (Kovincic et al. 2019).
@@ -47,9 +51,9 @@ from dataclasses import dataclass, replace
 from urident.errors import ConfigError
 from urident.ident.crossval import CVScore, select_dahl_rad
 from urident.ident.design import ModelConfig
+from urident.ident.friction_select import DAHL_GRID, FrictionSelection, select_friction  # noqa: F401 (DAHL_GRID re-exported)
 from urident.ident.preprocess import Prepared
 
-DAHL_GRID = (5e-5, 7e-5, 1e-4, 1.5e-4, 2e-4, 3e-4, 5e-4)   # [rad]
 CV_FOLDS = 5
 
 
@@ -60,6 +64,7 @@ class Preset:
     weighting: str
     select_dahl_rad: bool      # choose δ from DAHL_GRID by blocked CV on the identification data
     description: str
+    select_friction: bool = False   # choose each joint's friction terms by blocked CV (friction_select)
 
 
 PRESETS = {
@@ -73,6 +78,14 @@ PRESETS = {
         "reduced base set, per-joint weighting, Dahl presliding Coulomb state driven by the "
         "integrated velocity (distance chosen by 5-fold blocked CV), load-dependent Coulomb, "
         "square-root viscous and Stribeck (v_s 0.05 rad/s) friction"),
+    "auto": Preset(
+        "auto", ModelConfig(reduced=True, coulomb="dahl", dahl_source="velocity", dahl_rad=2e-4),
+        "joint", False,
+        "reduced base set, per-joint weighting, Dahl presliding Coulomb state driven by the "
+        "integrated velocity, and each joint's friction terms (offset, asymmetry, sigmoid with "
+        "offset, Stribeck, square-root/quadratic viscous, load-dependent Coulomb, Dahl, position "
+        "harmonics) and the Dahl distance chosen by 5-fold blocked CV on the identification data",
+        select_friction=True),
 }
 
 
@@ -85,6 +98,7 @@ class PresetChoice:
     model: ModelConfig
     weighting: str
     cv_scores: tuple[CVScore, ...] = ()
+    selection: FrictionSelection | None = None   # the per-joint choice (preset auto)
 
 
 def get_preset(name: str) -> Preset:
@@ -100,6 +114,9 @@ def resolve_preset(spec, data: Prepared, name: str, folds: int = CV_FOLDS) -> Pr
     p = get_preset(name)
     model = p.model
     scores: tuple[CVScore, ...] = ()
+    if p.select_friction:
+        sel = select_friction(spec, data, model, folds)
+        return PresetChoice(p.name, sel.model, p.weighting, (), sel)
     if p.select_dahl_rad:
         model, s = select_dahl_rad(spec, data, model, DAHL_GRID, p.weighting, "ols", folds)
         scores = tuple(s)

@@ -18,11 +18,15 @@ def comparison_report(models: Mapping[str, object], validations: Mapping[str, ob
     first = next(iter(models.values()))
     lines.append(f"robot {first.robot}, model {'reduced' if first.model.reduced else 'full'} "
                  f"({len(first.names)} parameters), friction eps {first.model.friction_eps:g} rad/s, "
-                 f"coulomb {first.model.coulomb}"
+                 + (f"coulomb {first.model.coulomb}" if not first.model.joint_coulomb else
+                    "coulomb per joint " + ",".join(first.model.joint_coulomb))
                  + (f" (dahl {first.model.dahl_rad:g} rad from {first.model.dahl_source})"
                     if first.model.coulomb == "dahl" or "dahl" in first.model.extras else "")
                  + f", extras {','.join(first.model.extras) or 'none'}, "
-                 f"weighting {first.weighting}, {first.n_samples} samples")
+                 + ("per-joint terms " + "; ".join(f"J{j + 1} {'+'.join(t) or '-'}"
+                                                   for j, t in enumerate(first.model.joint_extras)) + ", "
+                    if first.model.joint_extras else "")
+                 + f"weighting {first.weighting}, {first.n_samples} samples")
     lines.append("sigma: eq. (21) scaled by the noise variance s^2 = |e|^2/(6m - n) of each fit")
     widths = [16, 8] + [6] * 6 + [7]
     lines.append(_row(["method", "e_N"] + [f"rms{j + 1}" for j in range(6)] + ["mean"], widths))

@@ -49,6 +49,12 @@ EXTRA_COLUMNS = {
     "dahl": ("fh", "dahl"),
     "load": ("fcl", "load_friction"),
     "sqrtvisc": ("fvs", "sqrt_viscous"),
+    "asym": ("fa", "coulomb_asymmetry"),
+    "sigmoid": ("fg", "sigmoid"),
+    "sigoffset": ("fgo", "sigmoid_offset"),
+    "quadvisc": ("fvq", "quadratic_viscous"),
+    "poscos": ("fpc", "position_friction"),
+    "possin": ("fps", "position_friction"),
 }
 #: Kinds of the columns that are friction (or a constant offset): everything but the link-side
 #: rigid body and the rotor inertia.
@@ -94,6 +100,13 @@ def extra_column_names(feature: str) -> list[str]:
     return [f"{prefix}{j}" for j in range(1, N_JOINTS + 1)]
 
 
+def joint_column_name(feature: str, joint: int, value: float | None = None) -> str:
+    """Name of the column of a per-joint friction term: ``fg5`` (feature ``sigmoid``, 0-based
+    ``joint`` 4), or ``fg5@0.05`` when the term carries its own parameter ``value``."""
+    name = f"{EXTRA_COLUMNS[feature][0]}{joint + 1}"
+    return name if value is None else f"{name}@{value:g}"
+
+
 _MISSING = object()
 
 
@@ -101,6 +114,7 @@ def column_kind(name: str, default=_MISSING) -> str:
     """Kind of an identification-model column from its name: a standard parameter's name (a base
     parameter is named after one) or an extra column's name; any other name: ``default`` if given,
     else KeyError."""
+    name = name.split("@", 1)[0]   # a per-joint term's own parameter (joint_column_name)
     if default is _MISSING:
         return _KIND_BY_NAME[name]
     return _KIND_BY_NAME.get(name, default)

@@ -29,6 +29,11 @@ DESCRIPTIONS = {
     "dahl": "presliding (Dahl) friction state",
     "load_friction": "load-dependent Coulomb friction",
     "sqrt_viscous": "square-root viscous friction sign(qd)*sqrt|qd|",
+    "coulomb_asymmetry": "Coulomb asymmetry |z|",
+    "sigmoid": "sigmoid Coulomb friction tanh(qd/eps) of its own smoothness",
+    "sigmoid_offset": "sigmoid offset tanh(qd/eps)^2 (direction-dependent friction)",
+    "quadratic_viscous": "quadratic viscous friction qd*|qd|",
+    "position_friction": "position-dependent Coulomb friction z*cos/sin(k*q)",
     "coulomb_state": "Coulomb friction state ({model}) beyond tanh(qd/eps)",
 }
 
@@ -61,7 +66,7 @@ def inexpressible_terms(params, spec, fmt: str, data=None) -> list[Term]:
     kinds = np.array(params.kinds)
     values = np.asarray(params.values, dtype=float)
     groups = [k for k in dict.fromkeys(kinds) if not expressible(fmt, k) and k != "unknown"]
-    stateful = params.model.coulomb != "tanh"
+    stateful = params.model.coulomb != "tanh" or any(c != "tanh" for c in params.model.joint_coulomb)
     if not groups and not stateful:
         return []
     blocks = contributions = None
@@ -99,5 +104,6 @@ def inexpressible_terms(params, spec, fmt: str, data=None) -> list[Term]:
                 j = int(np.argmax(np.any(blocks[:, :, c] != 0, axis=0)))
                 kept[:, j] += values[c] * np.tanh(data.qd[:, j] / params.model.friction_eps)
             torque = contributions[:, :, mask].sum(axis=2) - kept
-        add("coulomb_state", DESCRIPTIONS["coulomb_state"].format(model=params.model.coulomb), mask, torque)
+        state = ", ".join(params.model.joint_coulomb) if params.model.joint_coulomb else params.model.coulomb
+        add("coulomb_state", DESCRIPTIONS["coulomb_state"].format(model=state), mask, torque)
     return terms

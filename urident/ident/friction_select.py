@@ -1,0 +1,361 @@
+"""Per-joint friction terms chosen by blocked cross-validation on the identification data
+(``urident identify --preset auto``).
+
+The family (:func:`family`) covers the friction forms labs publish for UR-type harmonic drives, as
+columns linear in their coefficients (:mod:`urident.ident.features`): a constant offset, Coulomb
+asymmetry |z|, Gaz et al.'s sigmoid with a velocity offset (linearised: tanh(q̇/ε) and tanh²(q̇/ε),
+ε on a grid), a smooth sigmoid alone, Stribeck (v_s on a grid), square-root and quadratic viscous
+(linear viscous is in the base set), load-dependent Coulomb, a Dahl presliding state (δ on a
+grid) and position-dependent Coulomb friction at harmonics 1-3 of the joint angle. Joint
+temperature is not offered: prepared data carry no temperature yet.
+
+Procedure, for each Coulomb state of the base model (tanh, ε = the model's; a Dahl state driven by
+∫q̇ with δ from :data:`DAHL_GRID`):
+
+1. one pass over the data (:func:`urident.ident.design.design_chunks`, bounded memory) builds,
+   per CV block (``folds`` contiguous blocks, fixed) and joint j, the QR factor of
+   [Θ_base,j | E_j | τ_j], E_j every candidate column of joint j;
+2. greedy forward selection, all joints per round: each joint's candidate is scored by the
+   held-out error of joint j with the weighted least-squares fit of the whole model (the other
+   joints' extra columns are profiled out of their factors, which is exact, so one candidate costs
+   one small QR per fold); joint weights 1/σ_j from a plain fit of each training fold, as
+   ``--weighting joint``.
+
+A term joins joint j when the per-fold decrease of joint j's held-out mean square error has a mean
+above :data:`MIN_T` standard errors of its fold-to-fold spread (a paired test over the folds:
+a fold's difficulty cancels, what stays is whether the term helps consistently) and lowers
+joint j's held-out RMS by at least :data:`MIN_GAIN` (a gain below the noise of the choice itself
+is not worth a parameter). Of the terms that pass, the largest gain is taken. The Coulomb state
+with the lowest mean held-out RMS over joints is shared; a joint takes another (its own best,
+with the terms selected on it) only when that passes the same rule against the shared one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from urident.ident.design import ModelConfig, base_for, design_chunks, parse_term
+from urident.ident.preprocess import Prepared
+from urident.ident.reduced import one_blas_thread
+
+DAHL_GRID = (5e-5, 7e-5, 1e-4, 1.5e-4, 2e-4, 3e-4, 5e-4)   # [rad] presliding distance of the base state
+# [rad/s] sigmoid smoothness ε = 2/φ2 (φ2 = 40, 10 s/rad); the sharp one is the tanh base. Not
+# offered on a Dahl base: beside a state that is tanh-like in motion, a sharp tanh changes mostly
+# what the model does at stops (it drops the friction there), which excitation runs cannot score
+SIGMOID_EPS = (0.05, 0.2)
+STRIBECK_VS = (0.02, 0.05, 0.1)       # [rad/s]
+HARMONICS = (1, 2, 3)                 # periods per joint revolution
+MIN_T = 2.0          # mean fold gain / its standard error (≈ 95 % one-sided with 5 folds)
+MIN_GAIN = 0.005     # relative held-out RMS decrease of the joint
+MAX_TERMS = 6        # per joint
+FOLDS = 5
+
+
+@dataclass(frozen=True)
+class Term:
+    """A candidate: a label for reports and the per-joint features it adds (``name@value``)."""
+
+    label: str
+    features: tuple[str, ...]
+
+
+def family(base: ModelConfig) -> tuple[Term, ...]:
+    """The candidate terms on top of ``base`` (module doc); features identical to the base's
+    Coulomb column are left out (a term that keeps none is dropped)."""
+    terms = [Term("offset", ("offset",)), Term("asymmetric Coulomb", ("asym",))]
+    terms += [Term(f"sigmoid+offset eps={e:g}", (f"sigmoid@{e:g}", f"sigoffset@{e:g}")) for e in SIGMOID_EPS]
+    terms += [Term(f"sigmoid eps={e:g}", (f"sigmoid@{e:g}",)) for e in SIGMOID_EPS]
+    terms += [Term(f"Stribeck vs={v:g}", (f"stribeck@{v:g}",)) for v in STRIBECK_VS]
+    terms += [Term("sqrt viscous", ("sqrtvisc",)), Term("quadratic viscous", ("quadvisc",)),
+              Term("load Coulomb", ("load",))]
+    terms += [Term(f"position k={k}", (f"poscos@{k}", f"possin@{k}")) for k in HARMONICS]
+    out = []
+    for t in terms:
+        kept = tuple(f for f in t.features if not _same_as_coulomb(base, f))
+        if kept and all(kept != o.features for o in out):
+            out.append(Term(t.label, kept))
+    return tuple(out)
+
+
+def _same_as_coulomb(base: ModelConfig, feature: str) -> bool:
+    name, value = parse_term(feature)
+    if base.coulomb == "tanh" and name == "sigmoid":
+        return np.isclose(value, base.friction_eps)
+    return False
+
+
+@dataclass(frozen=True)
+class Step:
+    """One term added to a joint: held-out RMS of the joint before and after [N·m], t statistic."""
+
+    term: str
+    rms_before: float
+    rms_after: float
+    t_stat: float
+
+    @property
+    def gain_pct(self) -> float:
+        return 100.0 * (1.0 - self.rms_after / self.rms_before)
+
+
+@dataclass(frozen=True)
+class JointChoice:
+    coulomb: str                     # the joint's Coulomb state: 'tanh' or 'dahl@delta'
+    steps: tuple[Step, ...]          # terms added on that state, in order
+    rejected: Step | None            # the best term of the last round, which did not pass
+    rms: float                       # held-out RMS of the joint in the chosen model [N·m]
+
+
+@dataclass(frozen=True)
+class FrictionSelection:
+    """The chosen model (``model``), per joint its Coulomb state, what was added and what was
+    not, and the Coulomb states compared (label → (6,) held-out RMS per joint after selection)."""
+
+    model: ModelConfig
+    joints: tuple[JointChoice, ...]
+    bases: tuple[tuple[str, np.ndarray], ...]
+    family: tuple[str, ...]
+    folds: int
+
+    @property
+    def mean_rms_nm(self) -> float:
+        return float(np.mean([j.rms for j in self.joints]))
+
+    def text(self) -> str:
+        lines = [f"friction terms chosen per joint by {self.folds}-fold blocked CV on the identification "
+                 f"data (a term kept when its fold gains have mean > {MIN_T:g} standard errors and the "
+                 f"joint's held-out RMS falls >= {100 * MIN_GAIN:g} %)",
+                 f"  terms tried per joint: {'; '.join(self.family)}",
+                 "  Coulomb states tried, each joint's held-out RMS [N·m] after its selection (the state with the "
+                 "lowest mean is shared; a joint takes its own best when that passes the term rule):"]
+        lines += [f"    {b:<18}" + " ".join(f"{v:6.3f}" for v in r) for b, r in self.bases]
+        for j, c in enumerate(self.joints):
+            chosen = ", ".join(f"{s.term} ({s.rms_before:.3f} -> {s.rms_after:.3f}, -{s.gain_pct:.1f} %, "
+                               f"t {s.t_stat:.1f})" for s in c.steps) or "none"
+            rej = ("" if c.rejected is None else
+                   f"; best rejected: {c.rejected.term} ({-c.rejected.gain_pct:+.1f} %, t {c.rejected.t_stat:.1f})")
+            lines.append(f"  J{j + 1}: {c.coulomb}; {chosen}{rej}; CV RMS {c.rms:.3f}")
+        lines.append(f"  mean CV RMS {self.mean_rms_nm:.3f} N·m")
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict:
+        return {"model": self.model.as_dict(), "folds": self.folds, "family": list(self.family),
+                "bases": {b: [float(v) for v in r] for b, r in self.bases}, "mean_cv_rms_nm": self.mean_rms_nm,
+                "joints": [{"coulomb": c.coulomb, "terms": [s.term for s in c.steps], "cv_rms_nm": c.rms,
+                            "steps": [vars(s) | {"gain_pct": s.gain_pct} for s in c.steps],
+                            "rejected": None if c.rejected is None else c.rejected.term}
+                           for c in self.joints]}
+
+
+class _Factors:
+    """Per fold and joint, the training and held-out factors of [Θ_base,j | E_j | τ_j]."""
+
+    def __init__(self, spec, base: ModelConfig, terms: tuple[Term, ...], data: Prepared, folds: int):
+        feats = list(dict.fromkeys(f for t in terms for f in t.features))
+        self.index = {f: k for k, f in enumerate(feats)}
+        m = len(feats)
+        nb = base_for(spec, base.reduced).n_base
+        self.nb, self.m = nb, m
+        sup = replace(base, extras=(), joint_extras=(tuple(feats),) * 6)
+        n = len(data)
+        edges = np.linspace(0, n, folds + 1).astype(int)
+        width = nb + m + 1
+        blocks_r = [[np.zeros((0, width)) for _ in range(6)] for _ in range(folds)]
+        with one_blas_thread():
+            for a, b, blocks in design_chunks(spec, sup, data.q, data.qd, data.qdd, data.segment, data.t,
+                                              chunk=4096):
+                for f in range(folds):
+                    lo, hi = max(a, edges[f]), min(b, edges[f + 1])
+                    if lo >= hi:
+                        continue
+                    part = blocks[lo - a:hi - a]
+                    for j in range(6):
+                        cols = np.r_[np.arange(nb), nb + j * m + np.arange(m)]
+                        rows = np.hstack([part[:, j, cols], data.tau[lo:hi, j, None]])
+                        blocks_r[f][j] = _tri(np.vstack([blocks_r[f][j], rows]), width)
+            self.test = blocks_r
+            self.train = [[_tri(np.vstack([blocks_r[g][j] for g in range(folds) if g != f]), width)
+                           for j in range(6)] for f in range(folds)]
+        self.n_test = np.diff(edges)
+        self.folds = folds
+
+    def cols(self, sel: list[str]) -> np.ndarray:
+        return np.r_[np.arange(self.nb), self.nb + np.array([self.index[f] for f in sel], dtype=int),
+                     self.nb + self.m]
+
+    def profile(self, f: int, j: int, sel: list[str]) -> np.ndarray:
+        """(nb + 1)² factor of joint j's training rows on [Θ_base | τ] with its extras ``sel``
+        eliminated (‖P [θ; −1]‖² = min over those coefficients)."""
+        c = self.cols(sel)
+        k = len(sel)
+        a = self.train[f][j][:, np.r_[c[self.nb:-1], c[:self.nb], c[-1]]]
+        return _tri(a, a.shape[1])[k:, k:]
+
+    def held_out(self, sels: list[list[str]]) -> np.ndarray:
+        """(folds, 6) held-out squared error per fold and joint of the model with extras ``sels``."""
+        out = np.zeros((self.folds, 6))
+        for f in range(self.folds):
+            others, w = self.others(f, sels)
+            for j in range(6):
+                out[f, j] = self.candidate(f, j, sels[j], others[j], w[j])
+        return out
+
+    def others(self, f: int, sels: list[list[str]]) -> tuple[list[np.ndarray], np.ndarray]:
+        """For each joint j, the weighted factor of every other joint's profiled rows; and the
+        joint weights 1/σ_j of a plain fit of training fold ``f``."""
+        prof = [self.profile(f, i, sels[i]) for i in range(6)]
+        theta = _solve(_tri(np.vstack(prof), self.nb + 1))
+        std = np.array([np.linalg.norm(p @ np.r_[theta, -1.0]) for p in prof])
+        std = np.sqrt(std ** 2 / (np.sum(self.n_test) - self.n_test[f]))
+        w = 1.0 / np.maximum(std, 1e-9 * max(std.max(), 1e-300))
+        return [_tri(np.vstack([w[i] * prof[i] for i in range(6) if i != j]), self.nb + 1) for j in range(6)], w
+
+    def candidate(self, f: int, j: int, sel: list[str], other: np.ndarray, weight: float) -> float:
+        """Held-out squared error of joint j in fold f with its extras ``sel``, the other joints'
+        rows given as their weighted profiled factor ``other``, joint j's rows weighted ``weight``."""
+        c = self.cols(sel)
+        k = len(sel)
+        p = self.nb + k
+        mine = weight * self.train[f][j][:, c]
+        pad = np.zeros((other.shape[0], p + 1))
+        pad[:, :self.nb] = other[:, :self.nb]
+        pad[:, p] = other[:, self.nb]
+        x = _solve(_tri(np.vstack([pad, mine]), p + 1))
+        e = self.test[f][j][:, c] @ np.r_[x, -1.0]
+        return float(e @ e)
+
+
+def _tri(a: np.ndarray, n: int) -> np.ndarray:
+    r = np.linalg.qr(a, mode="r")
+    if r.shape[0] < n:
+        r = np.vstack([r, np.zeros((n - r.shape[0], n))])
+    return r[:n]
+
+
+def _solve(r: np.ndarray) -> np.ndarray:
+    """argmin ‖R [x; −1]‖ for a square upper-triangular R (least squares if near singular)."""
+    a, z = r[:-1, :-1], r[:-1, -1]
+    scale = np.linalg.norm(a, axis=0)
+    scale[scale == 0] = 1.0
+    a = a / scale
+    d = np.abs(np.diag(a))
+    if d.size and d.min() > 1e-10 * d.max():
+        import scipy.linalg
+
+        x = scipy.linalg.solve_triangular(a, z)
+    else:
+        x, *_ = np.linalg.lstsq(a, z, rcond=1e-10)
+    return x / scale
+
+
+def _select(fac: _Factors, terms: tuple[Term, ...]) -> tuple[list[list[str]], list[JointChoice]]:
+    """Greedy forward selection of each joint's terms (module doc)."""
+    sels: list[list[str]] = [[] for _ in range(6)]
+    steps: list[list[Step]] = [[] for _ in range(6)]
+    rejected: list[Step | None] = [None] * 6
+    open_ = [True] * 6
+    n = np.sum(fac.n_test)
+    while any(open_):
+        base_sq = np.zeros((fac.folds, 6))
+        cand: list[list[tuple[Term, np.ndarray]]] = [[] for _ in range(6)]
+        for f in range(fac.folds):
+            ow, w = fac.others(f, sels)
+            for j in range(6):
+                if not open_[j]:
+                    continue
+                base_sq[f, j] = fac.candidate(f, j, sels[j], ow[j], w[j])
+                for t in terms:
+                    if any(x in sels[j] for x in t.features):
+                        continue
+                    if f == 0:
+                        cand[j].append((t, np.zeros(fac.folds)))
+                    entry = next(c for c in cand[j] if c[0] is t)
+                    entry[1][f] = fac.candidate(f, j, sels[j] + list(t.features), ow[j], w[j])
+        for j in range(6):
+            if not open_[j]:
+                continue
+            before = np.sqrt(base_sq[:, j].sum() / n)
+            best: tuple[float, Step] | None = None
+            best_any: Step | None = None
+            for t, sq in cand[j]:
+                d = (base_sq[:, j] - sq) / fac.n_test
+                se = np.std(d, ddof=1) / np.sqrt(len(d)) if len(d) > 1 else np.inf
+                t_stat = float(np.mean(d) / se) if se > 0 else (np.inf if np.mean(d) > 0 else 0.0)
+                step = Step(t.label, float(before), float(np.sqrt(sq.sum() / n)), t_stat)
+                if best_any is None or step.rms_after < best_any.rms_after:
+                    best_any = step
+                if t_stat > MIN_T and step.gain_pct >= 100 * MIN_GAIN:
+                    if best is None or step.rms_after < best[0]:
+                        best = (step.rms_after, step)
+            if best is None or len(steps[j]) >= MAX_TERMS:
+                open_[j] = False
+                rejected[j] = best_any if best is None else best[1]
+                continue
+            step = best[1]
+            term = next(t for t in terms if t.label == step.term)
+            sels[j] += list(term.features)
+            steps[j].append(step)
+    sq = fac.held_out(sels)
+    rms = np.sqrt(sq.sum(axis=0) / n)
+    return sels, [(tuple(steps[j]), rejected[j], float(rms[j])) for j in range(6)], sq / fac.n_test[:, None]
+
+
+def _coulomb_states(rms: np.ndarray, mse: np.ndarray) -> np.ndarray:
+    """(6,) index of each joint's Coulomb state: the one with the lowest mean held-out RMS over
+    joints, unless a joint's own best passes the term rule against it (``rms`` (S, 6); ``mse``
+    (S, folds, 6) held-out mean square error per fold): a joint departs from the shared state
+    only when CV says it pays, so a flat CV curve does not pick a state by its noise."""
+    shared = int(np.argmin(rms.mean(axis=1)))
+    pick = np.full(6, shared)
+    for j in range(6):
+        own = int(np.argmin(rms[:, j]))
+        d = mse[shared, :, j] - mse[own, :, j]
+        se = np.std(d, ddof=1) / np.sqrt(len(d))
+        if own != shared and se > 0 and np.mean(d) / se > MIN_T and rms[own, j] <= (1 - MIN_GAIN) * rms[shared, j]:
+            pick[j] = own
+    return pick
+
+
+def base_models(model: ModelConfig, dahl_grid=DAHL_GRID) -> list[tuple[str, ModelConfig]]:
+    """The base Coulomb states compared: tanh (the model's ε) and the Dahl state driven by ∫q̇ at
+    each distance of ``dahl_grid``."""
+    out = [(f"tanh eps={model.friction_eps:g}", replace(model, coulomb="tanh", dahl_source="velocity",
+                                                        extras=(), joint_extras=()))]
+    out += [(f"Dahl delta={d:g}", replace(model, coulomb="dahl", dahl_source="velocity", dahl_rad=d,
+                                          extras=(), joint_extras=())) for d in dahl_grid]
+    return out
+
+
+def select_friction(spec, data: Prepared, model: ModelConfig | None = None, folds: int = FOLDS,
+                    dahl_grid=DAHL_GRID) -> FrictionSelection:
+    """Each joint's friction terms chosen by blocked CV on ``data`` (module doc). ``model``: the
+    base-parameter set and tanh slope (default: the reduced base set, ε = 0.01 rad/s); its
+    friction extras are replaced by the choice. Weighting: per joint (``'joint'``)."""
+    from urident.progress import Progress
+
+    from urident.ident.crossval import cross_validate
+
+    model = model or ModelConfig(reduced=True)
+    bases = base_models(model, dahl_grid)
+    results = []
+    with Progress("friction selection (Coulomb states)", len(bases)) as progress:
+        for label, base in bases:
+            terms = family(base)
+            fac = _Factors(spec, base, terms, data, folds)
+            with one_blas_thread():
+                sels, joints, mse = _select(fac, terms)
+            results.append((label, base, sels, joints, mse))
+            progress.advance(1)
+    rms = np.array([[j[2] for j in r[3]] for r in results])     # (bases, 6)
+    pick = _coulomb_states(rms, np.stack([r[4] for r in results]))
+    states = tuple("tanh" if results[b][1].coulomb == "tanh" else f"dahl@{results[b][1].dahl_rad:g}"
+                   for b in pick)
+    chosen = replace(model, coulomb="tanh", dahl_source="velocity", extras=(),
+                     joint_coulomb=states, joint_extras=tuple(tuple(results[b][2][j]) for j, b in enumerate(pick)))
+    # the joints' states come from different runs: the model they make is scored as a whole
+    final = cross_validate(spec, data, chosen, "joint", "ols", folds).rms_nm
+    joints = tuple(JointChoice(states[j], *results[b][3][j][:2], float(final[j])) for j, b in enumerate(pick))
+    return FrictionSelection(chosen, joints, tuple((r[0], rms[k]) for k, r in enumerate(results)),
+                             tuple(t.label for t in family(bases[0][1])), folds)
