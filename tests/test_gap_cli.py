@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from urident.cli.main import main
+from urident.gap.schema import errors
 from urident.logs import LOG_FIELDS, LogWriter
 
 
@@ -48,6 +49,7 @@ def test_cli_reports_and_writes_json(logs, tmp_path, capsys):
     assert "Where" in text and "Which" in text and "How far" in text
     assert "current_offset on joint 4" in text
     doc = json.loads(out.read_text())
+    assert errors(doc) == []                 # the shipped schema: no NaN, None, infinity
     assert doc["findings"][0]["effect"] == "current_offset" and doc["findings"][0]["joint"] == 4
     assert len(doc["baseline"]["rms_nm"]) == 6 and len(doc["final"]["rms_nm"]) == 6
     assert doc["final"]["rms_nm"][3] < doc["baseline"]["rms_nm"][3]
@@ -94,7 +96,9 @@ def test_check_scores_each_finding_on_held_out_logs(logs, check_logs, tmp_path, 
     assert main(base + ["--check", str(check_logs[0]), "--json-out", str(out)]) == 0
     text = capsys.readouterr().out
     assert "Check (held-out logs" in text and "holds" in text and "DOES NOT HOLD" not in text
-    row = json.loads(out.read_text())["check"]["findings"][0]
+    doc = json.loads(out.read_text())
+    assert errors(doc) == []
+    row = doc["check"]["findings"][0]
     assert (row["effect"], row["joint"], row["holds"]) == ("current_offset", 4, True)
     lo, hi = row["checked_shrink_ci95_pct"]
     assert 0 < lo <= row["checked_shrink_pct"] <= hi

@@ -90,6 +90,7 @@ def test_effect_free_scenario_finds_nothing(spec):
     # the residual is the current noise (0.02 A × drive gain ≈ 0.2 N·m): nothing beyond the catalogue
     assert np.all(res.baseline_rms < 0.3)
     assert doc["where"]["unexplained"] == [] and "Beyond the catalogue" not in format_report(res)
+    assert doc["events"] == [] and doc["events_summary"]["n_samples_set_aside"] == 0
 
 
 def test_an_effect_outside_the_tested_set_is_reported_beyond_the_catalogue(spec):
@@ -283,7 +284,8 @@ def test_the_logged_target_moment_is_reported_beside_the_identified_model(spec):
     assert "Logged target moment" in format_report(res)
     # no target moment logged: no reference, no line
     res2 = diagnose([ident], [plain], spec, config=FAST)
-    assert res2.as_dict()["where"]["controller_model"] is None
+    where = res2.as_dict()["where"]      # no None in the JSON: absent, with the reason
+    assert "controller_model" not in where and "target moment" in where["absent"]["controller_model"]
     assert "Logged target moment" not in format_report(res2)
 
 

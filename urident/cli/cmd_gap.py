@@ -172,7 +172,10 @@ def run(args: argparse.Namespace) -> int:
         doc = result.as_dict()
         if check is not None:
             doc["check"] = check.as_dict()
-        text = json.dumps(doc, indent=1, allow_nan=False, default=_json_default)
+        from urident.gap.results import json_safe
+
+        # the check rows too: no NaN, None or infinity, a quantity that is absent says why
+        text = json.dumps(json_safe(doc), indent=1, allow_nan=False, default=_json_default)
         write_text_atomic(args.json_out, text, fsync=False, overwrite=args.overwrite)
         print(f"\nreport written to {args.json_out}")
     rec = options.open_recording_from_args(args, "urident_gap")

@@ -130,8 +130,9 @@ def run_sim(args: argparse.Namespace, load_all, json_default) -> int:
         print(f"wrote {path}")
     if args.json_out:
         from urident.fileio import write_text_atomic
+        from urident.gap.results import json_safe
 
-        text = json.dumps(doc, indent=1, allow_nan=False, default=json_default)
+        text = json.dumps(json_safe(doc), indent=1, allow_nan=False, default=json_default)
         write_text_atomic(args.json_out, text, fsync=False, overwrite=args.overwrite)
         print(f"\nreport written to {args.json_out}")
     return 0

@@ -128,7 +128,11 @@ class Candidate:
         elif e == "current_delay":
             out.update(delay_s=float(-b[0]))
         elif e == "torque_constant_error":
-            out.update(gain_factor=float(1.0 / (1.0 + b[0])) if b[0] > -1 else float("nan"))
+            if b[0] > -1:
+                out.update(gain_factor=float(1.0 / (1.0 + b[0])))
+            else:
+                out["absent"] = {"gain_factor": "the fitted correction leaves no positive gain "
+                                                "(1 + coefficient <= 0)"}
         elif e == "current_offset":
             out.update(offset_nm=float(b[0]))
             if spec is not None and self.joint is not None:

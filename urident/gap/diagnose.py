@@ -5,7 +5,8 @@ it shrinks.
    residual r = τ_measured − τ̂ on the validation logs, τ_measured = drive gains × raw current
    (:mod:`.residual`).
 2. Where: per joint RMS and share of the residual energy; binned maps and spectra; the regimes
-   where the energy concentrates (:mod:`.where`, :mod:`.maps`).
+   where the energy concentrates (:mod:`.where`, :mod:`.maps`). Before that, time-localised
+   events (contact, collisions, stalls: :mod:`.events`) are found and their samples set aside.
 3. Which: every candidate of :mod:`.candidates` (per effect, joint and mode; per family the
    variant that fits the fitting data best) scored on held-out validation data
    (:mod:`.significance`) in a stepwise selection (:mod:`.selection`).
@@ -21,12 +22,31 @@ from urident.gap.bootstrap import default_block_length
 from urident.gap.candidates import families
 from urident.gap.config import GapConfig
 from urident.gap.data import GapSet, build_set
+from urident.gap.events import find_events, smooth_basis, without_events
 from urident.gap.residual import baseline_design, fit_baseline, make_context
 from urident.gap.results import GapResult, e_n, rms
 from urident.gap.scoring import Scorer
 from urident.gap.selection import select
 from urident.gap.where import describe_unexplained, describe_where
 from urident.ident.reduced import one_blas_thread
+
+
+#: A joint is at rest on the validation run when |q̇| < AT_REST_RAD_S on at least AT_REST_SHARE of
+#: its samples (events set aside): no candidate on it is tested. Why 5 mrad/s: a joint creeping at
+#: 15 mrad/s slides (its friction is determinate); a held joint shows a few mrad/s of encoder noise.
+AT_REST_RAD_S = 0.005
+AT_REST_SHARE = 0.9
+AT_REST_REASON = ("the joint barely moves on the validation run: its friction at rest may take any "
+                  "value within the static friction, so no effect on it can be told from that")
+
+
+def joints_at_rest(qd) -> list[int]:
+    """0-based joints whose velocity stays below :data:`AT_REST_RAD_S` on at least
+    :data:`AT_REST_SHARE` of the samples ``qd`` (N, 6)."""
+    import numpy as np
+
+    share = np.mean(np.abs(np.asarray(qd, float)) < AT_REST_RAD_S, axis=0)
+    return [int(j) for j in np.flatnonzero(share >= AT_REST_SHARE)]
 
 
 def diagnose(ident_recordings: Sequence, valid_recordings: Sequence, spec, *, params=None,
@@ -60,20 +80,34 @@ def _diagnose_prepared(spec, ident: GapSet, valid: GapSet, params, config: GapCo
         model = params
     ctx_i = make_context(spec, model, ident, keep_design=True, design=design)
     ctx_v = make_context(spec, model, valid, keep_design=True)
+    n_valid = ctx_v.n
+    events = find_events(ctx_v.residual, valid.run_time, valid.prepared.qd, valid.sample_rate,
+                         smooth_basis(ctx_v))
+    if events:
+        # contact, collisions, stalls: no effect of the arm; set aside from fits, scores and maps
+        valid = without_events(valid, events)
+        ctx_v = make_context(spec, model, valid, keep_design=True)
     block = default_block_length(ctx_v.n, valid.sample_rate * config.block_s)
     scorer = Scorer(ctx_i, ctx_v, config.n_folds, block)
     r0 = ctx_v.residual
     where = describe_where(ctx_v, ctx_i)
 
     fams = families(spec, ctx_i, ctx_v, config.effects)
+    rest = joints_at_rest(ctx_v.qd)
+    if rest:
+        # friction at rest takes any value within ± the static friction: nothing that acts on a
+        # joint that does not move can be told from it (a pushed arm holding its pose)
+        fams = [f for f in fams if (f[0].joint not in rest if f[0].joint is not None else len(rest) < 6)]
+        where["at_rest"] = {"joints": [j + 1 for j in rest], "reason": AT_REST_REASON}
     scorer.prepare_gains(fams)
     pool = [max(f, key=scorer.training_gain) if len(f) > 1 else f[0] for f in fams]
     scorer.prepare(pool)
 
     findings, steps, confounds, current = select(scorer, pool, block, config, ctx_v, spec)
     final_r = current.residual
-    where["unexplained"] = describe_unexplained(ctx_v, final_r)   # beyond the catalogue
+    where["unexplained"] = describe_unexplained(ctx_v, final_r, min_shrink_pct=config.min_shrink_pct,
+                                                noise_ratio=config.cv_min_noise_ratio)   # beyond the catalogue
     for ctx in (ctx_i, ctx_v):
         ctx.cache.clear()              # the result keeps no design matrix (bounded memory)
     return GapResult(spec.name, model, ctx_i, ctx_v, e_n(r0), rms(r0), e_n(final_r), rms(final_r),
-                     findings, current, steps, confounds, where, config, scorer)
+                     findings, current, steps, confounds, where, config, scorer, events, n_valid)

@@ -20,6 +20,15 @@ def format_report(res, top: int = 12) -> str:
     for jd in res.where["joints"]:
         for text in jd["regimes"]:
             lines.append(f"  - {text}")
+    events = getattr(res, "events", [])
+    if events:
+        aside = sum(e.stop - e.start for e in events)
+        lines.append(f"  Events (time-localised, no smooth effect: set aside, {aside} of "
+                     f"{res.n_valid_all or res.valid.n} samples):")
+        for e in events:
+            js = ", ".join(f"{j + 1} (peak {p:+.1f}, RMS {r:.1f} N·m)"
+                           for j, p, r in zip(e.joints, e.peak_nm, e.rms_nm))
+            lines.append(f"    {e.kind} t = {e.t_start_s:.2f}-{e.t_end_s:.2f} s: joints {js}")
     ref = res.where.get("controller_model")
     if ref:
         fmt = lambda xs: " ".join(f"{x:7.3f}" for x in xs)   # noqa: E731
@@ -68,11 +77,13 @@ def format_report(res, top: int = 12) -> str:
     left = res.where.get("unexplained") or []
     if left:
         lines.append("")
-        lines.append("Beyond the catalogue (residual left after the findings, above the noise):")
+        lines.append("Beyond the catalogue (residual left after the findings: above the noise or structured):")
         for u in left:
             lines.append(f"  joint {u['joint']}: RMS {u['rms_nm']:.3f} N·m, {u['noise_ratio']:.1f} x its "
                          f"white-noise torque ({u['noise_nm']:.3f} N·m); structured part "
                          f"{u['structured_rms_nm']:.3f} N·m")
+            for st in u.get("structure", []):
+                lines.append(f"     structure: {st['text']}")
             for text in u["regimes"] or ["spread over all regimes"]:
                 lines.append(f"     where: {text}")
     lines.append("")

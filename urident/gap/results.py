@@ -84,6 +84,8 @@ class Finding:
     joints: tuple[int, ...] = ()     # 1-based, every joint it changes, most torque explained first
     torque_nm: tuple[float, ...] = ()        # per joint of ``joints``: RMS of its correction [N·m]
     joint_shrink_pct: tuple[float, ...] = ()  # per joint of ``joints``: validation RMS shrink [%]
+    claim: str = "cause"             # cause | partial (its form leaves what it does not explain)
+    remains: dict = field(default_factory=dict)   # partial: what its form leaves (texts, figures)
 
     def as_dict(self) -> dict:
         return {"joint": self.joint, "joints": list(self.joints or (self.joint,)),
@@ -92,7 +94,8 @@ class Finding:
                 "regime": self.regime, "rms_before_nm": self.rms_before_nm,
                 "rms_after_nm": self.rms_after_nm, "shrink_pct": self.shrink_pct,
                 "confidence": self.confidence, "gain_ci95_nm2": list(self.gain_ci95_nm2),
-                "magnitude": self.magnitude, "confounded_with": list(self.confounded_with)}
+                "magnitude": self.magnitude, "confounded_with": list(self.confounded_with),
+                "claim": self.claim, **({"remains": self.remains} if self.remains else {})}
 
 
 @dataclass(eq=False)
@@ -112,6 +115,8 @@ class GapResult:
     where: dict                      # per-joint maps and regimes
     config: GapConfig
     scorer: Scorer | None = None     # to fit any candidates on the same data (benchmarks)
+    events: list = field(default_factory=list)   # urident.gap.events.Event, set aside
+    n_valid_all: int | None = None   # validation samples before the events were set aside
 
     @property
     def verdict(self) -> str:
@@ -151,10 +156,53 @@ def result_dict(res) -> dict:
     return json_safe(_document(res))
 
 
+#: Why a quantity of the report is absent, by its key (the report writes no NaN, None or infinity:
+#: a quantity that cannot be computed is left out and named under ``absent`` with the reason).
+ABSENT_REASONS = {
+    "rms_nm": "no samples in this bin", "mean_nm": "no samples in this bin",
+    "lo": "the bin is unbounded below", "hi": "the bin is unbounded above",
+    "measured_over_target_scale": "the target moment is zero on this joint",
+    "gain_factor": "the fitted correction leaves no positive gain (1 + coefficient <= 0)",
+    "extrapolated_shrink_pct": "no correction on this run's motion to extrapolate",
+    "limit": "its column is zero on these states: no value is identifiable",
+    "peak_hz": "too few samples for a spectrum",
+    "change_between_runs": "no target moment in the identification logs",
+    "controller_model": "the logs hold no target moment",
+}
+#: The reason given for a key not in :data:`ABSENT_REASONS`.
+NOT_COMPUTABLE = "not computable on these data"
+
+
+def _missing(v) -> bool:
+    return v is None or (isinstance(v, (float, np.floating)) and not np.isfinite(v))
+
+
 def json_safe(x):
-    """``x`` made JSON-safe: numpy scalars to Python, non-finite floats to None."""
+    """``x`` made JSON-safe: numpy scalars to Python; a value that is None or not finite is left
+    out and its key listed under ``absent`` with the reason (:data:`ABSENT_REASONS`); a list with
+    such entries (a per-joint figure some joints lack) becomes ``{"1": value, ...}`` keyed by the
+    1-based position of the entries that exist, the others listed under ``absent`` as
+    ``key[position]``. A bare missing value outside a dict is an error (nothing to name it by)."""
     if isinstance(x, dict):
-        return {str(k): json_safe(v) for k, v in x.items()}
+        out, absent = {}, dict(x.get("absent") or {})
+        for k, v in x.items():
+            k = str(k)
+            if k == "absent":
+                continue
+            if isinstance(v, np.ndarray):
+                v = v.tolist()
+            if _missing(v):
+                absent.setdefault(k, ABSENT_REASONS.get(k, NOT_COMPUTABLE))
+            elif isinstance(v, (list, tuple)) and any(_missing(e) for e in v):
+                out[k] = {str(i + 1): json_safe(e) for i, e in enumerate(v) if not _missing(e)}
+                for i, e in enumerate(v):
+                    if _missing(e):
+                        absent.setdefault(f"{k}[{i + 1}]", ABSENT_REASONS.get(k, NOT_COMPUTABLE))
+            else:
+                out[k] = json_safe(v)
+        if absent:
+            out["absent"] = {str(k): str(v) for k, v in absent.items()}
+        return out
     if isinstance(x, (list, tuple)):
         return [json_safe(v) for v in x]
     if isinstance(x, np.ndarray):
@@ -164,8 +212,18 @@ def json_safe(x):
     if isinstance(x, (int, np.integer)):
         return int(x)
     if isinstance(x, (float, np.floating)):
-        return float(x) if np.isfinite(x) else None
+        if not np.isfinite(x):
+            raise ValueError(f"non-finite number {x} outside a named field of the report")
+        return float(x)
     return x
+
+
+def _events_summary(res) -> dict:
+    events = getattr(res, "events", [])
+    n_all = getattr(res, "n_valid_all", None) or res.valid.n
+    aside = int(sum(e.stop - e.start for e in events))
+    return {"n_samples_set_aside": aside, "n_valid_samples": int(n_all),
+            "share_set_aside": float(aside / n_all) if n_all else 0.0}
 
 
 def _document(res) -> dict:
@@ -186,6 +244,8 @@ def _document(res) -> dict:
                   "e_n_shrink_pct": float(100 * (1 - res.final_e_n / res.baseline_e_n))
                   if res.baseline_e_n > 0 else 0.0},
         "confounded": res.confounds,
+        "events": [e.as_dict() for e in getattr(res, "events", [])],
+        "events_summary": _events_summary(res),
         "where": res.where,
         "candidates": steps,
         "settings": {"min_shrink_pct": res.config.min_shrink_pct,

@@ -234,8 +234,16 @@ def diagnose_sim(valid_recordings: Sequence, spec, sim, *, drive_gains=None,
     from urident.gap.where import describe_where
 
     config = config or GapConfig()
+    from urident.gap.events import find_events, smooth_basis, without_events
+
     valid = build_set(valid_recordings, spec, drive_gains, None, "validation logs")
     ctx = make_sim_context(sim, valid)
+    n_valid = ctx.n
+    events = find_events(ctx.residual, valid.run_time, valid.prepared.qd, valid.sample_rate,
+                         smooth_basis(ctx))
+    if events:       # contact, collisions, stalls: set aside (urident.gap.events)
+        valid = without_events(valid, events)
+        ctx = make_sim_context(sim, valid)
     scorer = Scorer(ctx, ctx, config.n_folds)
     where = describe_where(ctx, ctx)
     fams = sim_candidates(spec) + link_inertia_candidates(spec, ctx)
@@ -264,7 +272,8 @@ def diagnose_sim(valid_recordings: Sequence, spec, sim, *, drive_gains=None,
         findings, steps, confounds, current = select(scorer, pool, block, config, ctx, spec,
                                                      prefer=lambda c: c.effect in DRIVE_EFFECTS)
         result = GapResult(spec.name, baseline, ctx, ctx, e_n(r0), rms(r0), e_n(current.residual),
-                           rms(current.residual), findings, current, steps, confounds, where, config, scorer)
+                           rms(current.residual), findings, current, steps, confounds, where, config, scorer,
+                           events, n_valid)
         # a link correction that is no real mass distribution (alone or with only the expressible
         # findings) holds what other terms should: select again without it
         bad = unrealisable_chosen(result, sim, spec)

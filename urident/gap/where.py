@@ -74,23 +74,36 @@ UNEXPLAINED_NOISE_RATIO = 1.25
 
 
 def describe_unexplained(ctx: SetContext, residual: np.ndarray,
-                         ratio: float = UNEXPLAINED_NOISE_RATIO) -> list[dict]:
-    """Joints whose residual ``residual`` (N, 6; validation, after the named effects) stays at
-    least ``ratio`` times above the white-noise torque: its RMS, the noise, the structured part
-    √(RMS² − σ²) and where it concentrates (regimes of the maps), so that an effect beyond the
-    catalogue is reported instead of silently missing."""
+                         ratio: float = UNEXPLAINED_NOISE_RATIO, min_shrink_pct: float = 3.0,
+                         noise_ratio: float = 0.5) -> list[dict]:
+    """Joints whose residual ``residual`` (N, 6; validation, after the named effects) still carries
+    structure: its RMS at least ``ratio`` times the white-noise torque, or a structure a white-noise
+    test does not see (:func:`urident.gap.structure.joint_structure`: harmonics of the angle up to
+    the angle-Nyquist, dependence on a joint's velocity, the model torque or time, localisation in
+    time) that would shrink it by ``min_shrink_pct`` with a fitted part of ``noise_ratio`` × the
+    noise. Each with its RMS, the noise, the structured part √(RMS² − σ²), the structures and the
+    regimes of the maps where it concentrates, so that an effect beyond the catalogue is reported
+    instead of silently missing."""
+    from urident.gap.structure import describe, joint_structure
+
     r = np.asarray(residual, float)
     sigma = noise_sigma(r)
     load = signed_load(ctx)
     out = []
     for j in range(r.shape[1]):
         rms_j = float(np.sqrt(np.mean(r[:, j] ** 2)))
-        if sigma[j] <= 0 or rms_j < ratio * sigma[j]:
+        if sigma[j] <= 0:
+            continue
+        found = joint_structure(j, r[:, j], ctx, float(sigma[j]), min_shrink_pct, noise_ratio)
+        if rms_j < ratio * sigma[j] and not found:
             continue
         jm = maps.joint_maps(r[:, j], ctx.qd[:, j], load[:, j], ctx.q[:, j], ctx.data.run_time)
         regimes = maps.concentrated_regimes(j, jm)
+        for f in found:
+            f["text"] = describe(f)
         out.append({"joint": j + 1, "rms_nm": rms_j, "noise_nm": float(sigma[j]),
                     "noise_ratio": float(rms_j / sigma[j]),
                     "structured_rms_nm": float(np.sqrt(max(rms_j ** 2 - sigma[j] ** 2, 0.0))),
+                    "structure": found,
                     "regimes": [g.text("of the remaining energy") for g in regimes]})
     return out

@@ -1,0 +1,140 @@
+"""Gap diagnosis beyond its catalogue: time-localised events, structure left in the residual, and
+a JSON report with no NaN, None or infinity (validated against the shipped schema)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from urident.gap.events import find_events, without_events
+from urident.gap.results import json_safe
+from urident.gap.schema import errors, report_schema
+from urident.gap.structure import angle_harmonics, angle_nyquist, linear_dependence, time_localised
+
+FS = 100.0
+
+
+def test_json_safe_leaves_out_what_cannot_be_computed_and_says_why():
+    doc = json_safe({"a": 1.0, "gain_factor": float("nan"), "b": None, "s": [1.0, None, np.inf],
+                     "nested": {"hi": np.inf}})
+    assert doc["a"] == 1.0 and "gain_factor" not in doc and "b" not in doc
+    assert "no positive gain" in doc["absent"]["gain_factor"] and doc["absent"]["b"]
+    assert doc["s"] == {"1": 1.0} and set(doc["absent"]) >= {"s[2]", "s[3]"}
+    assert "hi" not in doc["nested"] and "unbounded" in doc["nested"]["absent"]["hi"]
+    json.dumps(doc, allow_nan=False)
+    with pytest.raises(ValueError):
+        json_safe([float("nan")])
+
+
+def test_the_validator_rejects_null_nan_and_missing_keys():
+    schema = report_schema()
+    assert errors({}, schema)                   # every required key missing
+    s = {"type": "object", "required": ["x"], "properties": {"x": {"type": "number"}},
+         "additionalProperties": {"$ref": "#/definitions/v"},
+         "definitions": {"v": {"type": ["number", "string", "object", "array", "boolean"],
+                               "items": {"$ref": "#/definitions/v"}}}}
+    assert errors({"x": 1.0, "y": ["a", 2]}, s) == []
+    assert errors({"x": float("nan")}, s) and errors({"x": None}, s) and errors({"x": 1, "y": [None]}, s)
+
+
+def _bumps(n, pushes, joints=(1,), height=30.0, seed=0):
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / FS
+    r = rng.normal(0, 0.3, (n, 6)) + 2.0 * np.sin(0.7 * t)[:, None]     # noise and a smooth misfit
+    for a, b in pushes:
+        w = (t >= a) & (t < b)
+        for j in joints:
+            r[w, j] += height * np.sin(np.pi * (t[w] - a) / (b - a))
+    return t, r
+
+
+def test_events_cover_each_push_and_nothing_on_a_smooth_residual():
+    t, r = _bumps(3000, [(5.0, 6.2), (14.0, 15.0), (22.0, 22.8)], joints=(1, 2))
+    ev = find_events(r, t, np.zeros_like(r), FS)
+    assert len(ev) == 3
+    for e, (a, b) in zip(ev, [(5.0, 6.2), (14.0, 15.0), (22.0, 22.8)]):
+        assert a - 0.2 <= e.t_start_s and e.t_end_s <= b + 0.2 and (e.t_end_s - e.t_start_s) > 0.5 * (b - a)
+        assert set(e.joints) == {1, 2} and e.kind == "external_contact"
+        assert max(abs(p) for p in e.peak_nm) > 20
+    t, r = _bumps(3000, [])
+    assert find_events(r, t, np.zeros_like(r), FS) == []
+    # a spike of a few samples at each reversal (a delay, Stribeck) is no event
+    r[::300, 0] += 5.0
+    r[1::300, 0] += 5.0
+    assert find_events(r, t, np.zeros_like(r), FS) == []
+
+
+def test_without_events_splits_the_segments():
+    from test_gap_diagnose import simulate, sines
+    from urident.gap.data import build_set
+    from urident.model import load_robot
+
+    spec = load_robot("ur10e")
+    data = build_set([simulate(spec, sines(5, duration=6.0), None, seed=5)], spec)
+    t = data.run_time
+    r = np.zeros((len(t), 6))
+    r[(t > 2.0) & (t < 3.0), 2] = 50.0
+    r += np.random.default_rng(1).normal(0, 0.2, r.shape)
+    ev = find_events(r, t, data.prepared.qd, data.sample_rate)
+    assert len(ev) == 1 and ev[0].joints == (2,)
+    sub = without_events(data, ev)
+    assert len(sub) == len(data) - (ev[0].stop - ev[0].start)
+    assert len(np.unique(sub.prepared.segment)) == 2 and len(sub.run_time) == len(sub)
+
+
+def test_structure_a_white_noise_level_test_misses():
+    rng = np.random.default_rng(3)
+    n = 20000
+    t = np.arange(n) / 500.0
+    q = 0.8 * np.sin(0.5 * t)
+    qd = 0.4 * np.cos(0.5 * t)
+    sign = np.tanh(qd / 0.01)
+    noise = rng.normal(0, 0.2, n)
+    assert angle_nyquist(qd, 500.0) >= 202
+    ripple = 0.15 * np.sin(202 * q + 0.3)
+    found = angle_harmonics(noise + ripple, q, qd, 500.0, sign)
+    assert found and found[0]["k"] == 202 and found[0]["mode"] == "torque"
+    assert abs(found[0]["fitted_rms_nm"] - 0.15 / np.sqrt(2)) < 0.02
+    assert angle_harmonics(noise, q, qd, 500.0, sign) == []
+    lin = {f["signal"]: f for f in linear_dependence(noise + 3.0 * qd * np.abs(qd), {"v": qd, "time": t})}
+    assert abs(lin["v"]["correlation"]) > 0.5 and abs(lin["time"]["correlation"]) < 0.1
+    burst = noise.copy()
+    w = (t > 10) & (t < 12)
+    burst[w] += rng.normal(0, 1.0, int(w.sum()))
+    loc = time_localised(burst, t, 500.0)
+    assert len(loc) == 1 and 9.9 <= loc[0]["t_start_s"] and loc[0]["t_end_s"] <= 12.1
+    assert time_localised(noise, t, 500.0) == []
+
+
+def test_a_pushed_validation_run_reports_the_push_names_nothing_and_its_json_conforms(tmp_path):
+    """An effect-free arm pushed for a second on joints 2-3: one external_contact event, its
+    samples set aside, no effect named; the JSON conforms to the schema (no NaN, None)."""
+    from test_gap_diagnose import FAST, simulate, sines
+    from urident.gap import diagnose, format_report
+    from urident.model import load_robot
+
+    spec = load_robot("ur10e")
+    ident = simulate(spec, sines(1), None, seed=11)
+    valid = simulate(spec, sines(2), None, seed=12)
+    t = valid.t
+    w = (t > 8.0) & (t < 9.0)
+    push = np.zeros_like(valid.current)
+    push[w, 1] = 3.0 * np.sin(np.pi * (t[w] - 8.0))
+    push[w, 2] = -2.0 * np.sin(np.pi * (t[w] - 8.0))
+    from dataclasses import replace
+
+    pushed = replace(valid, current=valid.current + push)
+    res = diagnose([ident], [pushed], spec, config=FAST)
+    assert len(res.events) == 1, format_report(res)
+    e = res.events[0]
+    assert 7.8 <= e.t_start_s <= 8.3 and 8.7 <= e.t_end_s <= 9.2 and set(e.joints) == {1, 2}
+    assert res.findings == [], format_report(res)
+    doc = json.loads(json.dumps(res.as_dict(), allow_nan=False))
+    assert errors(doc) == []
+    assert doc["events"][0]["kind"] == "external_contact"
+    assert doc["events_summary"]["n_samples_set_aside"] == e.stop - e.start
+    assert "Events" in format_report(res)
+    jsonschema = pytest.importorskip("jsonschema")
+    jsonschema.validate(doc, report_schema())

@@ -1,0 +1,168 @@
+"""Structure left in a joint's residual that a white-noise level test does not see: harmonics of
+the joint angle up to the angle-Nyquist of the samples, linear dependence on each joint's velocity,
+on the model torque and on time, and energy localised in time. Each is reported only when fitting it
+would shrink the joint's RMS by at least ``min_shrink_pct`` and its fitted part reaches
+``noise_ratio`` times the white-noise torque (the materiality rules of the findings)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from urident.gap.maps import NEAR_ZERO_VELOCITY
+
+#: Harmonics up to this many cycles per revolution at most (bounded cost).
+MAX_HARMONIC = 2000
+#: A harmonic is a spectral peak when its power exceeds this multiple of the spectrum's mean power
+#: (exponentially distributed for noise: P = e^−16 ≈ 1e−7 per harmonic, < 1e−3 over 2000).
+PEAK_POWER_RATIO = 16.0
+#: Blocks [s] of the time-localisation test, and how far above the median block a block must be.
+BLOCK_S = 1.0
+BLOCK_ENERGY_RATIO = 4.0
+
+
+def _shrink_pct(explained_ss: float, total_ss: float) -> float:
+    if total_ss <= 0:
+        return 0.0
+    return float(100.0 * (1.0 - np.sqrt(max(total_ss - explained_ss, 0.0) / total_ss)))
+
+
+def angle_nyquist(qd: np.ndarray, fs: float) -> int:
+    """The highest harmonic k (cycles per revolution) the samples resolve on most of the motion:
+    k·|q̇| < π·fs at the 90th percentile of the moving samples' speed."""
+    v = np.abs(np.asarray(qd, float))
+    v = v[v > NEAR_ZERO_VELOCITY]
+    if v.size < 10:
+        return 0
+    return int(min(MAX_HARMONIC, np.floor(np.pi * fs / np.percentile(v, 90))))
+
+
+def angle_harmonics(r: np.ndarray, q: np.ndarray, qd: np.ndarray, fs: float, sign: np.ndarray,
+                    top: int = 3) -> list[dict]:
+    """Peaks of the residual's spectrum against the joint angle, k = 2 … :func:`angle_nyquist`, of
+    r (torque ripple) and of r·sign(q̇) (friction ripple), on the moving samples; each with the
+    RMS [N·m] of the fitted sin/cos(k·q) and the share of the samples' energy it explains."""
+    moving = np.abs(qd) > NEAR_ZERO_VELOCITY
+    if moving.sum() < 50:
+        return []
+    stride = max(1, int(moving.sum() // 40000))
+    qm = np.asarray(q, float)[moving][::stride]
+    k_max = angle_nyquist(qd, fs)
+    span = float(np.ptp(qm))
+    k_min = max(2, int(np.ceil(2 * np.pi / span))) if span > 0 else k_max + 1
+    if k_max < k_min:
+        return []
+    # e^{-ikq} is 2π-periodic in q for integer k: the sums Σ y·e^{-ikq} for every k at once by an
+    # FFT of y binned on [0, 2π) (bins of 2π/(8·k_max): a phase error of at most π/8 at k_max)
+    m = 8 * k_max
+    idx = np.minimum((np.mod(qm, 2 * np.pi) / (2 * np.pi) * m).astype(int), m - 1)
+    ks = np.arange(k_min, k_max + 1)
+    out = []
+    for mode, x in (("torque", r), ("friction", r * sign)):
+        y = np.asarray(x, float)[moving][::stride]
+        y = y - y.mean()
+        n = len(y)
+        power = np.abs(np.fft.fft(np.bincount(idx, weights=y, minlength=m))[ks]) ** 2
+        mean = np.median(power) / np.log(2.0)
+        if not mean > 0:
+            continue
+        # the span of angles visited widens each peak to about 2π/span harmonics: one per peak
+        width = max(1, int(np.ceil(2 * np.pi / span)))
+        taken: list[int] = []
+        for i in np.argsort(-power):
+            if len(taken) == top or power[i] < PEAK_POWER_RATIO * mean:
+                break
+            k = int(ks[i])
+            if any(abs(k - o) <= width for o in taken):
+                continue
+            taken.append(k)
+            a = np.column_stack([np.sin(k * qm), np.cos(k * qm)])
+            beta, *_ = np.linalg.lstsq(a, y, rcond=None)
+            fit = a @ beta
+            out.append({"kind": "angle_harmonic", "mode": mode, "k": k,
+                        "fitted_rms_nm": float(np.sqrt(np.mean(fit ** 2))),
+                        "explained_ss": float(fit @ fit) * stride, "n": n * stride,
+                        "peak_over_mean_power": float(power[i] / mean)})
+    return out
+
+
+def linear_dependence(r: np.ndarray, signals: dict) -> list[dict]:
+    """Per signal (name → (N,)), the part of ``r`` linear in it (with a constant): its RMS and the
+    energy it explains."""
+    out = []
+    y = np.asarray(r, float)
+    yc = y - y.mean()
+    for name, x in signals.items():
+        xc = np.asarray(x, float) - np.mean(x)
+        xx = float(xc @ xc)
+        if xx <= 0:
+            continue
+        b = float(xc @ yc) / xx
+        fit = b * xc
+        out.append({"kind": "linear", "signal": name, "correlation": float(xc @ yc / np.sqrt(xx * float(yc @ yc)))
+                    if yc @ yc > 0 else 0.0, "fitted_rms_nm": float(np.sqrt(np.mean(fit ** 2))),
+                    "explained_ss": float(fit @ fit)})
+    return out
+
+
+def time_localised(r: np.ndarray, run_time: np.ndarray, fs: float) -> list[dict]:
+    """1-s blocks whose mean square exceeds :data:`BLOCK_ENERGY_RATIO` × the median block's, merged
+    when adjacent: their excess energy over that median."""
+    r = np.asarray(r, float)
+    n = len(r)
+    size = max(1, int(round(BLOCK_S * fs)))
+    m = n // size
+    if m < 5:
+        return []
+    ms = np.mean(r[:m * size].reshape(m, size) ** 2, axis=1)
+    med = float(np.median(ms))
+    hot = ms > BLOCK_ENERGY_RATIO * med
+    out = []
+    b = 0
+    while b < m:
+        if not hot[b]:
+            b += 1
+            continue
+        a = b
+        while b < m and hot[b]:
+            b += 1
+        excess = float(np.sum(ms[a:b] - med) * size)
+        out.append({"kind": "time_localised", "t_start_s": float(run_time[a * size]),
+                    "t_end_s": float(run_time[min(b * size, n) - 1]), "explained_ss": excess,
+                    "fitted_rms_nm": float(np.sqrt(max(excess, 0.0) / n))})
+    return out
+
+
+def joint_structure(j: int, r: np.ndarray, ctx, sigma_j: float, min_shrink_pct: float,
+                    noise_ratio: float) -> list[dict]:
+    """The material structure of joint ``j``'s residual ``r`` (N,) on the set ``ctx``
+    (module doc), largest first; each with ``shrink_pct``, what fitting it would do."""
+    r = np.asarray(r, float)
+    total = float(r @ r)
+    fs = ctx.data.sample_rate
+    found = angle_harmonics(r, ctx.q[:, j], ctx.qd[:, j], fs, ctx.sign()[:, j])
+    signals = {f"velocity of joint {i + 1}": ctx.qd[:, i] for i in range(6)}
+    signals.update({f"model torque of joint {i + 1}": ctx.tau_hat[:, i] for i in range(6)})
+    signals["time"] = ctx.data.run_time
+    found += linear_dependence(r, signals)
+    found += time_localised(r, ctx.data.run_time, fs)
+    out = []
+    for f in found:
+        n = f.pop("n", len(r))
+        share = f.pop("explained_ss") * len(r) / n
+        f["shrink_pct"] = _shrink_pct(share, total)
+        if f["shrink_pct"] >= min_shrink_pct and f["fitted_rms_nm"] >= noise_ratio * sigma_j:
+            out.append(f)
+    out.sort(key=lambda f: -f["shrink_pct"])
+    return out
+
+
+def describe(f: dict) -> str:
+    """One line of text for a structure of :func:`joint_structure`."""
+    if f["kind"] == "angle_harmonic":
+        what = (f"{f['mode']} ripple at k = {f['k']} cycles per revolution "
+                f"({f['fitted_rms_nm']:.3g} N·m RMS)")
+    elif f["kind"] == "linear":
+        what = f"linear in the {f['signal']} (correlation {f['correlation']:+.2f})"
+    else:
+        what = f"localised in time, t in [{f['t_start_s']:.3g}, {f['t_end_s']:.3g}] s"
+    return f"{what}: fitting it would shrink the RMS by {f['shrink_pct']:.1f} %"
