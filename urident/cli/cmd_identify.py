@@ -176,18 +176,9 @@ _AUTO_CONFLICTS = (("coulomb", "--coulomb"), ("hold_velocity", "--hold-velocity"
                    ("stribeck_vs", "--stribeck-vs"), ("weighting", "--weighting"))
 
 
-def sibling(path: Path, method: str) -> Path:
-    return path.with_name(f"{path.stem}.{method}{path.suffix or '.yaml'}")
-
-
 def run(args: argparse.Namespace) -> int:
+    from urident import api
     from urident.errors import ConfigError
-    from urident.ident import identify_all, prepare, save_params
-    from urident.ident.estimate_consistent import DEFAULT_REGULARISATION
-    from urident.ident.presets import get_preset
-    from urident.ident.report import comparison_report
-    from urident.ident.torque import resolve_drive_gains
-    from urident.ident.report import logs_used
     from urident.logs import load_log_from_args
     from urident.logs.cli_args import logs_from_args
     from urident.model import load_robot
@@ -202,7 +193,7 @@ def run(args: argparse.Namespace) -> int:
     options.output_path("--out", out, args.overwrite)
     for m in methods:
         if m != primary:
-            options.output_path("--out", sibling(out, m), args.overwrite)
+            options.output_path("--out", api.sibling(out, m), args.overwrite)
     options.output_path("--urdf", args.urdf, args.overwrite)
     options.output_path("--report", args.report, args.overwrite)
     options.output_dir_files("--png", args.png, [f"fit_{m}.png" for m in methods] + ["base_parameters.png"],
@@ -211,55 +202,13 @@ def run(args: argparse.Namespace) -> int:
     paths = logs_from_args(args.logs, args.logs_from)
     spec = load_robot(args.robot)
     model, weighting, select = model_config(args)
-    config = preprocess_config(args)
-    gains = resolve_drive_gains(spec, args.drive_gains)
-    from urident.ident.torque import describe_signal
-
-    signals = []  # which signal gave each log's torques, said before the recording is freed
-
-    def loaded():
-        for path in progress_iter(paths, "loading logs"):
-            recording = load_log_from_args(path, args, robot=spec.name)
-            signals.append(describe_signal(recording))
-            yield recording
-
-    data = prepare(loaded(), spec, config, gains)  # one log at a time, each freed once prepared
-    payload = options.load_payload_arg(args, spec)
-    if payload is not None:
-        from urident.ident.payload import without_payload
-
-        data = without_payload(spec, payload, data)
-    cv_text = ""
-    name = preset_name(args)
-    if name and get_preset(name).select_friction:
-        from urident.ident.friction_select import select_friction
-
-        selection = select_friction(spec, data, model)
-        model = selection.model
-        cv_text = selection.text()
-    elif select:
-        from urident.ident.crossval import select_dahl_rad
-        from urident.ident.presets import CV_FOLDS, DAHL_GRID
-
-        model, scores = select_dahl_rad(spec, data, model, DAHL_GRID, weighting, "ols", CV_FOLDS)
-        cv_text = (f"dahl_rad selected by {CV_FOLDS}-fold blocked CV on the identification data: "
-                   f"{model.dahl_rad:g} rad (mean held-out RMS [N·m] per distance: "
-                   + ", ".join(f"{s.model.dahl_rad:g}: {s.mean_rms_nm:.3f}" for s in scores) + ")")
-    reg = DEFAULT_REGULARISATION if args.regularisation is None else args.regularisation
-    models = identify_all(spec, data, methods, model, weighting, reg, config)
-    save_params(models[primary], out, overwrite=args.overwrite)
-    written = [str(out)]
-    for m in methods:
-        if m != primary:
-            save_params(models[m], sibling(out, m), overwrite=args.overwrite)
-            written.append(str(sibling(out, m)))
-    text = comparison_report(models)
-    text = "\n".join(signals) + "\n" + text
-    if preset_name(args):
-        text = f"preset {preset_name(args)}\n" + text
-    if cv_text:
-        text = cv_text + "\n" + text
-    text = text + "\n" + logs_used(data.provenance)
+    result = api.identify(
+        (load_log_from_args(path, args, robot=spec.name) for path in progress_iter(paths, "loading logs")),
+        spec, args.method, preset_name(args), model=model, weighting=weighting, select_dahl_rad=select,
+        preprocess=preprocess_config(args), drive_gains=args.drive_gains,
+        payload=options.load_payload_arg(args, spec), regularisation=args.regularisation)
+    written = [str(p) for p in result.save(out, overwrite=args.overwrite)]
+    models, data, text = result.models, result.data, result.report
     priors = ("inertia_com", "rotor_inertia", "viscous_friction", "coulomb_friction")
     note = spec.nominal_note(priors + (("torque_constant", "gear_ratio") if args.drive_gains is None else ()))
     if note:  # torques from currents use the file's torque constants; priors and bounds its values

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -35,10 +34,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from urident import api
     from urident.cli.cmd_identify import preprocess_overrides
-    from urident.errors import ConfigError
-    from urident.ident import load_params, predict_recordings, prediction_config
-    from urident.ident.identify import check_compatible
+    from urident.ident import load_params
     from urident.logs import load_log_from_args
     from urident.model import load_robot
     from urident.progress import progress_iter
@@ -47,23 +45,14 @@ def run(args: argparse.Namespace) -> int:
     options.output_dir_files("--png", args.png, [_png_name(p) for p in args.params], args.overwrite)
     options.check_rerun_args(args)  # before the heavy work: a missing viewer fails at once
     models = [(path, load_params(path)) for path in args.params]
-    robot = args.robot or models[0][1].robot
-    spec = load_robot(robot)
-    for path, m in models:
-        if m.robot != spec.name:
-            raise ConfigError(f"{path}: parameters are for robot {m.robot!r}, validating on {spec.name!r}")
+    spec = load_robot(args.robot or models[0][1].robot)
     payload = options.load_payload_arg(args, spec)
     recordings = (load_log_from_args(p, args, robot=spec.name, say_signal=True)
                   for p in progress_iter(args.logs, "loading logs"))
-    if len(models) > 1:  # each parameters file predicts the same recordings; one file streams them
-        recordings = list(recordings)
-    results = []
-    for path, m in models:
-        check_compatible(m, spec, str(path))
-        config = prediction_config(m, **preprocess_overrides(args))
-        prediction = predict_recordings(m, recordings, spec, config=config, payload=payload,
-                                        drive_gains=args.drive_gains or None)
-        results.append((path, prediction.validation()))
+    validation = api.validate([m for _, m in models], recordings, spec, payload=payload,
+                              drive_gains=args.drive_gains or None, names=list(args.params),
+                              payload_name=args.payload, **preprocess_overrides(args))
+    results = list(zip(args.params, validation.results))
     for path, r in results:
         print(f"{path} ({r.method}, {r.n_samples} samples): e_N = {r.e_n:.4f}, "
               f"mean RMS {r.mean_rms_nm:.3f} N·m")
@@ -74,12 +63,9 @@ def run(args: argparse.Namespace) -> int:
         if note:  # measured torques = the robot file's drive gains × current
             print(note)
     if args.json_out:
-        report = dict(results[0][1].as_dict(), params=str(results[0][0]), payload=args.payload)
-        if len(results) > 1:
-            report["results"] = [dict(r.as_dict(), params=str(p)) for p, r in results]
         from urident.fileio import write_text_atomic
 
-        write_text_atomic(args.json_out, json.dumps(report, indent=2) + "\n", overwrite=args.overwrite)
+        write_text_atomic(args.json_out, validation.to_json() + "\n", overwrite=args.overwrite)
     _to_rerun(args, spec, results)
     if args.png:
         from urident.viz.plots import plot_torques

@@ -146,6 +146,15 @@ class GapResult:
     def as_dict(self) -> dict:
         return result_dict(self)
 
+    def to_dict(self) -> dict:
+        """The JSON document ``urident gap --json-out`` writes."""
+        return result_dict(self)
+
+    def to_json(self, indent: int | None = 2) -> str:
+        import json
+
+        return json.dumps(result_dict(self), indent=indent)
+
 
 def _list(x) -> list[float]:
     return [float(v) for v in np.asarray(x, float)]

@@ -1,0 +1,109 @@
+"""The Python API (`import urident as ur`): the same results as the command line by construction,
+frozen results with plain JSON documents, and the CLI's errors."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import urident as ur
+from urident.cli.main import main
+from urident.errors import ConfigError
+
+REPO = Path(__file__).resolve().parent.parent
+IDENT, VALID = str(REPO / "logs" / "sample_ident.csv"), str(REPO / "logs" / "sample_valid.csv")
+
+
+@pytest.fixture(scope="module")
+def identified():
+    return ur.identify([IDENT], robot="ur5", method="all")
+
+
+def test_importing_urident_loads_no_analysis_code():
+    code = "import sys, urident; print(sorted(m for m in ('urident.api', 'numpy', 'pinocchio') if m in sys.modules))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+
+
+def test_identify_is_what_the_command_writes(identified, tmp_path, capsys):
+    assert main(["identify", IDENT, "--robot", "ur5", "--method", "all", "--out", str(tmp_path / "p.yaml")]) == 0
+    printed = capsys.readouterr().out
+    written = identified.save(tmp_path / "api.yaml")
+    assert [p.name for p in written] == ["api.yaml", "api.ols.yaml", "api.bounded.yaml"]
+    for cli_file, api_file in (("p.yaml", "api.yaml"), ("p.ols.yaml", "api.ols.yaml")):
+        from urident.ident import load_params
+
+        a, b = load_params(tmp_path / cli_file), load_params(tmp_path / api_file)
+        assert a.names == b.names and np.array_equal(a.values, b.values)
+    assert identified.report in printed
+    assert identified.method == "consistent" and set(identified.models) == {"ols", "bounded", "consistent"}
+    params = identified.parameters("ols")
+    assert len(params) == len(identified.models["ols"].names) and all(np.isfinite(list(params.values())))
+    document = json.loads(identified.to_json())
+    assert document["robot"] == "ur5" and set(document["methods"]) == {"ols", "bounded", "consistent"}
+    with pytest.raises(AttributeError):
+        identified.method = "ols"  # frozen
+
+
+def test_validate_json_is_the_commands_json(identified, tmp_path):
+    params = tmp_path / "p.yaml"
+    identified.save(params)
+    out = tmp_path / "v.json"
+    assert main(["validate", VALID, "--params", str(params), "--json-out", str(out)]) == 0
+    check = ur.validate(str(params), [VALID])
+    assert json.loads(out.read_text()) == json.loads(check.to_json())
+    assert check.tau_measured.shape == check.tau_predicted.shape == (len(check.t), 6)
+    assert check.rms_nm.shape == (6,) and 0 < check.e_n < 0.05
+    # an Identification validates directly, with the same numbers as its saved file
+    direct = ur.validate(identified, VALID)
+    assert direct.e_n == pytest.approx(check.e_n, rel=1e-12)
+
+
+def test_api_errors_are_the_commands_errors(identified):
+    with pytest.raises(ConfigError, match="method 'best' unknown"):
+        ur.identify([IDENT], robot="ur5", method="best")
+    with pytest.raises(ConfigError, match="parameters are for robot 'ur5', validating on 'ur10e'"):
+        ur.validate(identified, [VALID], robot="ur10e")
+    with pytest.raises(ConfigError) as unknown:
+        ur.identify([IDENT], robot="ur99")
+    assert unknown.value.exit_code == 2 and "ur99" in str(unknown.value)
+
+
+def test_check_trajectory_reports_what_the_command_checks(capsys):
+    path = REPO / "experiments" / "ur5_ident.yaml"
+    report = ur.check_trajectory(path)
+    assert report.ok and not report.violations
+    assert main(["check-trajectory", str(path)]) == 0
+    with pytest.raises(ConfigError, match="a trajectory for robot 'ur5', not 'ur3'"):
+        ur.check_trajectory(path, robot="ur3")
+
+
+@pytest.mark.parametrize("script, expect", [
+    ("identify_ur10e.py", "real-robot"),
+    ("ros2_bag.py", "validated on the second bag"),
+    ("gap_diagnosis.py", "baseline e_N"),
+])
+def test_examples_run(script, expect):
+    """Each example as a user runs it, from the repository root."""
+    r = subprocess.run([sys.executable, str(Path("examples") / script)], cwd=REPO, capture_output=True,
+                       text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    assert expect in r.stdout and "Traceback" not in r.stderr
+
+
+def test_the_readmes_python_runs_as_written():
+    import re
+
+    from readme_helpers import README
+
+    blocks = re.findall(r"```python\n(.*?)```", README.read_text(), re.S)
+    assert blocks
+    for block in blocks:
+        r = subprocess.run([sys.executable, "-c", block], cwd=REPO, capture_output=True, text=True,
+                           timeout=600)
+        assert r.returncode == 0, block + r.stderr

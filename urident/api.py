@@ -1,0 +1,346 @@
+"""urident's Python API: the analysis steps of the command line as functions, for notebooks and
+scripts. One import::
+
+    import urident as ur
+
+    ident = ur.identify(["ident.csv"], robot="ur10e", method="all", preset="real-robot")
+    ident.save("params.yaml")
+    check = ur.validate(ident, ["valid.csv"])
+    print(check.e_n, check.rms_nm)              # the paper's e_N; per-joint RMS [N·m], (6,)
+    gap = ur.diagnose_gap(["ident.csv"], ["valid.csv"], robot="ur10e")
+
+Logs are given as paths or as :class:`urident.logs.Recording` objects (``ur.load_log`` reads one
+with every option of the command line's log flags). Every result is a frozen dataclass with arrays
+in SI units, ``to_dict()`` and ``to_json()``; the commands' ``--json-out`` writes exactly that
+document. Errors a user can cause raise :class:`urident.errors.UridentError` subclasses (one-line
+message naming the file, key or argument; ``exit_code`` is what the command line returns).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Iterator, Mapping, Sequence
+
+import numpy as np
+
+from urident.errors import ConfigError
+from urident.logs import Recording, load_log
+
+METHODS = ("ols", "bounded", "consistent")
+__all__ = ["Identification", "Validation", "check_trajectory", "diagnose_gap", "identify",
+           "load_log", "validate"]
+
+
+def _spec(robot):
+    from urident.model import RobotSpec, load_robot
+
+    return robot if isinstance(robot, RobotSpec) else load_robot(robot)
+
+
+def _recordings(logs, robot: str, **log_options) -> Iterator[Recording]:
+    """Each log as a :class:`Recording`, loaded one at a time (a path, a Recording, or an
+    iterable of them)."""
+    if isinstance(logs, (str, Path, Recording)):
+        logs = [logs]
+    for log in logs:
+        yield log if isinstance(log, Recording) else load_log(log, robot=robot, **log_options)
+
+
+def _json(document: dict, indent: int | None) -> str:
+    return json.dumps(document, indent=indent)
+
+
+def sibling(path: Path, method: str) -> Path:
+    """Where the estimate of ``method`` goes beside the primary parameters file ``path``."""
+    return path.with_name(f"{path.stem}.{method}{path.suffix or '.yaml'}")
+
+
+# --------------------------------------------------------------------------- identify
+@dataclass(frozen=True)
+class Identification:
+    """Identified parameters, one :class:`urident.ident.IdentifiedModel` per method.
+
+    ``method`` is the primary one (the physically consistent estimate when several were asked);
+    ``report`` is the comparison table the command prints (the torque signal of each log, the
+    estimates, the logs used); ``selection`` says what a preset chose by cross-validation;
+    ``data`` is the prepared identification data (:class:`urident.ident.Prepared`: t, q, qd, qdd,
+    measured tau) the estimates were fitted on."""
+
+    robot: str
+    method: str
+    models: Mapping[str, object]
+    report: str
+    selection: str = ""
+    data: object = field(default=None, repr=False, compare=False)  # the prepared data fitted on
+
+    @property
+    def model(self):
+        """The primary method's :class:`urident.ident.IdentifiedModel`."""
+        return self.models[self.method]
+
+    def parameters(self, method: str | None = None) -> dict[str, float]:
+        """Base parameter name → value (SI units) of ``method`` (default: the primary one)."""
+        m = self.models[method or self.method]
+        return {name: float(v) for name, v in zip(m.names, m.values)}
+
+    def save(self, path: str | Path, overwrite: bool = False) -> list[Path]:
+        """Write the primary estimate to ``path`` and every other method's beside it
+        (``PARAMS.ols.yaml``, ...); returns the files written."""
+        from urident.ident import save_params
+
+        path = Path(path)
+        written = []
+        for method in (self.method, *(m for m in self.models if m != self.method)):
+            target = path if method == self.method else sibling(path, method)
+            save_params(self.models[method], target, overwrite=overwrite)
+            written.append(target)
+        return written
+
+    def to_dict(self) -> dict:
+        methods = {}
+        for name, m in self.models.items():
+            methods[name] = {"parameters": self.parameters(name),
+                             "sigma": [float(v) for v in m.sigma],
+                             "n_samples": int(m.n_samples),
+                             "train_e_n": None if not np.isfinite(m.train_e_n) else float(m.train_e_n),
+                             "train_rms_nm": None if m.train_rms is None else [float(v) for v in m.train_rms],
+                             "drive_gains": [float(v) for v in m.drive_gains]}
+        return {"robot": self.robot, "method": self.method, "methods": methods,
+                "selection": self.selection, "report": self.report}
+
+    def to_json(self, indent: int | None = 2) -> str:
+        return _json(self.to_dict(), indent)
+
+
+def identify(logs, robot, method: str = "ols", preset: str | None = None, *, model=None,
+             weighting: str | None = None, select_dahl_rad: bool | None = None, preprocess=None,
+             drive_gains=None, payload=None, regularisation: float | None = None,
+             log_options: Mapping | None = None, progress: bool = False) -> Identification:
+    """Identify base parameters from ``logs`` (paths or Recordings, loaded one at a time).
+
+    ``method``: ``ols`` (the paper's), ``bounded``, ``consistent`` or ``all``. ``preset``: a named
+    configuration (``paper``, ``real-robot``); ``model`` (a :class:`urident.ident.ModelConfig`),
+    ``weighting`` and ``select_dahl_rad`` override it. ``preprocess``: a
+    :class:`urident.ident.PreprocessConfig` (default: rest trimmed). ``drive_gains``: six joint-side
+    gains i_G·k [N·m/A], a GAINS.yaml path, or None for the robot file's. ``payload``: a
+    :class:`urident.ident.payload.Payload` or a payload file the logs carry (its torque is removed).
+    ``log_options``: keyword arguments of :func:`urident.logs.load_log` for paths."""
+    from urident.ident import PreprocessConfig, identify_all, prepare
+    from urident.ident.estimate_consistent import DEFAULT_REGULARISATION
+    from urident.ident.presets import CV_FOLDS, DAHL_GRID, get_preset
+    from urident.ident.report import comparison_report, logs_used
+    from urident.ident.torque import describe_signal, resolve_drive_gains
+
+    if method not in (*METHODS, "all"):
+        raise ConfigError(f"method {method!r} unknown (known: {', '.join(METHODS)}, all)")
+    methods = METHODS if method == "all" else (method,)
+    spec = _spec(robot)
+    chosen = get_preset(preset) if preset else None
+    model = model if model is not None else (chosen.model if chosen else None)
+    weighting = weighting or (chosen.weighting if chosen else "none")
+    if select_dahl_rad is None:
+        select_dahl_rad = bool(chosen and chosen.select_dahl_rad)
+    config = preprocess if preprocess is not None else PreprocessConfig(trim_rest=True)
+    gains = resolve_drive_gains(spec, drive_gains)
+    signals: list[str] = []  # which signal gave each log's torques, said before it is freed
+
+    def loaded() -> Iterator[Recording]:
+        paths = logs
+        if progress:
+            from urident.progress import progress_iter
+
+            paths = progress_iter([logs] if isinstance(logs, (str, Path, Recording)) else list(logs),
+                                  "loading logs")
+        for recording in _recordings(paths, spec.name, **dict(log_options or {})):
+            signals.append(describe_signal(recording))
+            yield recording
+
+    data = prepare(loaded(), spec, config, gains)
+    if payload is not None:
+        from urident.ident.payload import without_payload
+
+        data = without_payload(spec, _payload(payload, spec), data)
+    if model is None:
+        from urident.ident import ModelConfig
+
+        model = ModelConfig()
+    selection = ""
+    if chosen is not None and chosen.select_friction:
+        from urident.ident.friction_select import select_friction
+
+        chosen_terms = select_friction(spec, data, model)
+        model, selection = chosen_terms.model, chosen_terms.text()
+    elif select_dahl_rad:
+        from urident.ident.crossval import select_dahl_rad as select
+
+        model, scores = select(spec, data, model, DAHL_GRID, weighting, "ols", CV_FOLDS)
+        selection = (f"dahl_rad selected by {CV_FOLDS}-fold blocked CV on the identification data: "
+                     f"{model.dahl_rad:g} rad (mean held-out RMS [N·m] per distance: "
+                     + ", ".join(f"{s.model.dahl_rad:g}: {s.mean_rms_nm:.3f}" for s in scores) + ")")
+    reg = DEFAULT_REGULARISATION if regularisation is None else regularisation
+    models = identify_all(spec, data, methods, model, weighting, reg, config)
+    report = "\n".join(signals) + "\n" + comparison_report(models)
+    if preset:
+        report = f"preset {preset}\n" + report
+    if selection:
+        report = selection + "\n" + report
+    report = report + "\n" + logs_used(data.provenance)
+    primary = "consistent" if method == "all" else method
+    return Identification(spec.name, primary, dict(models), report, selection, data)
+
+
+def _payload(payload, spec):
+    from urident.ident.payload_file import load_payload
+
+    return load_payload(payload, spec) if isinstance(payload, (str, Path)) else payload
+
+
+# --------------------------------------------------------------------------- validate
+@dataclass(frozen=True)
+class Validation:
+    """Predicted against measured torques of the validation logs, one
+    :class:`urident.ident.ValidationResult` per parameters file (``params`` names each).
+
+    The first result's metrics are the validation's: ``e_n`` (the paper's normalised error),
+    ``rms_nm`` (6,) N·m, ``rre_pct`` (6,) %, and its arrays ``t`` (N,) s, ``tau_measured`` and
+    ``tau_predicted`` (N, 6) N·m."""
+
+    results: tuple
+    params: tuple[str, ...]
+    payload: str | None = None
+
+    @property
+    def result(self):
+        return self.results[0]
+
+    @property
+    def e_n(self) -> float:
+        return float(self.result.e_n)
+
+    @property
+    def rms_nm(self) -> np.ndarray:
+        return self.result.rms_nm
+
+    @property
+    def rre_pct(self) -> np.ndarray:
+        return self.result.rre_pct
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.result.t
+
+    @property
+    def tau_measured(self) -> np.ndarray:
+        return self.result.tau_measured
+
+    @property
+    def tau_predicted(self) -> np.ndarray:
+        return self.result.tau_predicted
+
+    def to_dict(self) -> dict:
+        """The document ``urident validate --json-out`` writes: the first result's metrics, and
+        every result under ``results`` when several parameters files were compared."""
+        document = dict(self.result.as_dict(), params=self.params[0], payload=self.payload)
+        if len(self.results) > 1:
+            document["results"] = [dict(r.as_dict(), params=p) for p, r in zip(self.params, self.results)]
+        return document
+
+    def to_json(self, indent: int | None = 2) -> str:
+        return _json(self.to_dict(), indent)
+
+
+def validate(params, logs, robot=None, *, payload=None, drive_gains=None,
+             log_options: Mapping | None = None, progress: bool = False,
+             names: Sequence[str] | None = None, payload_name: str | None = None,
+             **preprocess_overrides) -> Validation:
+    """Predict the torques of ``logs`` with ``params`` and compare with the measured ones.
+
+    ``params``: an :class:`Identification` (its primary estimate), an IdentifiedModel, a
+    parameters file, or a list of them to compare. Preprocessing follows each parameters file
+    (:func:`urident.ident.prediction_config`); ``preprocess_overrides`` (``filter_hz``,
+    ``trim_rest``, ...) override it. ``robot`` defaults to the parameters' robot; ``names``
+    label the parameters in the result (default: their files), ``payload_name`` the payload."""
+    from urident.ident import load_params, predict_recordings, prediction_config
+    from urident.ident.identify import check_compatible
+
+    items = list(params) if isinstance(params, (list, tuple)) else [params]
+    if not items:
+        raise ConfigError("validate needs at least one parameters file")
+    models = []
+    for item in items:
+        if isinstance(item, Identification):
+            models.append((f"<identified {item.method}>", item.model))
+        elif isinstance(item, (str, Path)):
+            models.append((str(item), load_params(item)))
+        else:
+            models.append((f"<{getattr(item, 'method', 'parameters')}>", item))
+    if names is not None:
+        models = [(str(label), m) for label, (_, m) in zip(names, models)]
+    spec = _spec(robot or models[0][1].robot)
+    for name, m in models:
+        if m.robot != spec.name:
+            raise ConfigError(f"{name}: parameters are for robot {m.robot!r}, validating on {spec.name!r}")
+    load = _payload(payload, spec) if payload is not None else None
+    paths = logs
+    if progress and not isinstance(logs, (str, Path, Recording)):
+        from urident.progress import progress_iter
+
+        paths = progress_iter(list(logs), "loading logs")
+    recordings = _recordings(paths, spec.name, **dict(log_options or {}))
+    if len(models) > 1:  # each parameters file predicts the same recordings; one file streams them
+        recordings = list(recordings)
+    results = []
+    for name, m in models:
+        check_compatible(m, spec, name)
+        config = prediction_config(m, **preprocess_overrides)
+        prediction = predict_recordings(m, recordings, spec, config=config, payload=load,
+                                        drive_gains=drive_gains)
+        results.append(prediction.validation())
+    if payload_name is None and isinstance(payload, (str, Path)):
+        payload_name = str(payload)
+    return Validation(tuple(results), tuple(n for n, _ in models), payload_name)
+
+
+# --------------------------------------------------------------------------- gap, trajectories
+def diagnose_gap(ident_logs, valid_logs, robot, *, params=None, drive_gains=None, payload=None,
+                 log_options: Mapping | None = None, **config):
+    """Where the baseline model's residual on ``valid_logs`` lies, which unmodelled effect explains
+    it and how far it shrinks once added. The baseline is identified on ``ident_logs`` (the
+    paper's model), or is ``params`` (an :class:`Identification`, IdentifiedModel or parameters
+    file); ``payload``: a known tool on the flange; ``config`` sets
+    :class:`urident.gap.GapConfig` fields. Returns a :class:`urident.gap.GapResult`
+    (``to_dict()``/``to_json()`` give the document ``urident gap --json-out`` writes)."""
+    from urident.gap import GapConfig, diagnose
+    from urident.ident import load_params
+
+    spec = _spec(robot)
+    if isinstance(params, Identification):
+        params = params.model
+    elif isinstance(params, (str, Path)):
+        params = load_params(params)
+    options = dict(log_options or {})
+    ident = list(_recordings(ident_logs, spec.name, **options))
+    valid = list(_recordings(valid_logs, spec.name, **options))
+    return diagnose(ident, valid, spec, params=params, drive_gains=drive_gains,
+                    config=replace(GapConfig(), **config), payload=_payload(payload, spec)
+                    if payload is not None else None)
+
+
+def check_trajectory(trajectory, robot=None, rate_hz: float | None = None, payload=None):
+    """Every constraint of a trajectory file (or a loaded :class:`urident.excitation.TrajectoryFile`)
+    checked densely at ``rate_hz`` (default: the robot's controller rate), with the file's limits,
+    for the file's robot (``robot``, if given, must be it),
+    with and without ``payload`` (default: the one the file records). Returns a
+    :class:`urident.excitation.CheckReport` (``ok``, ``violations``)."""
+    from urident.excitation import TrajectoryFile, load_trajectory
+    from urident.excitation import check_trajectory as check
+
+    loaded = trajectory if isinstance(trajectory, TrajectoryFile) else load_trajectory(trajectory)
+    spec = loaded.spec
+    if robot is not None and _spec(robot).name != spec.name:
+        raise ConfigError(f"{loaded.path}: a trajectory for robot {spec.name!r}, not {_spec(robot).name!r}")
+    rate = rate_hz or spec.controller_rate_hz
+    load = _payload(payload, spec) if payload is not None else loaded.payload
+    return check(spec, loaded.trajectory, rate, loaded.limits, payload=load)
