@@ -7,7 +7,7 @@ import importlib
 import os
 import sys
 
-from urident import __version__
+from urident.version import __version__
 from urident.cli.options import ArgumentParser
 from urident.errors import UridentError
 
