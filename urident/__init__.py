@@ -7,7 +7,7 @@ command line starts fast::
     ident = ur.identify(["ident.csv"], robot="ur10e")
 """
 
-__version__ = "0.1.0"
+from urident.version import __version__
 
 _API = ("Identification", "Validation", "check_trajectory", "diagnose_gap", "identify", "load_log",
         "validate")

@@ -8,7 +8,7 @@ import os
 import sys
 import warnings
 
-from urident import __version__
+from urident.version import __version__
 from urident.cli.options import ArgumentParser
 from urident.errors import UridentError
 

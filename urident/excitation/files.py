@@ -53,7 +53,7 @@ import yaml
 
 from urident.fileio import write_text_atomic
 
-from urident import __version__
+from urident.version import __version__
 from urident.errors import ConfigError
 from urident.excitation.constraints import Limits, Margins
 from urident.excitation.fourier import FourierTrajectory

@@ -28,7 +28,7 @@ from .sidecar import sha256_file, utc_now_iso, write_sidecar
 
 def _urident_version() -> str:
     try:
-        from urident import __version__
+        from urident.version import __version__
 
         return str(__version__)
     except ImportError:  # pragma: no cover
