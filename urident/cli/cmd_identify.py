@@ -116,6 +116,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--report", metavar="FILE", default=None, help="also write the comparison table here")
     p.add_argument("--png", metavar="DIR", default=None,
                    help="write fit plots (measured vs predicted, base parameters) as PNG here")
+    p.add_argument("--sessions", action="store_true",
+                   help="each log is a session (another day): fit the shared parameters with, per "
+                        "session, a torque offset and a friction scale on the joints where blocked "
+                        "cross-validation says they pay (the first log is the reference); the report "
+                        "lists them, the parameters file holds the shared model")
     options.add_overwrite_argument(p, "existing parameters, URDF, report and plot files")
     add_model_arguments(p)
     add_preprocess_arguments(p, trim_default=True)
@@ -245,6 +250,11 @@ def run(args: argparse.Namespace) -> int:
         cv_text = (f"dahl_rad selected by {CV_FOLDS}-fold blocked CV on the identification data: "
                    f"{model.dahl_rad:g} rad (mean held-out RMS [N·m] per distance: "
                    + ", ".join(f"{s.model.dahl_rad:g}: {s.mean_rms_nm:.3f}" for s in scores) + ")")
+    if args.sessions:
+        from urident.ident.sessions import fit_sessions
+
+        data, session_terms = fit_sessions(spec, data, model, weighting)
+        cv_text = (cv_text + "\n" if cv_text else "") + session_terms.text()
     reg = DEFAULT_REGULARISATION if args.regularisation is None else args.regularisation
     models = identify_all(spec, data, methods, model, weighting, reg, config)
     save_params(models[primary], out, overwrite=args.overwrite)

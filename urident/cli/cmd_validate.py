@@ -26,6 +26,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--robot", default=None, help="robot (default: the parameters file's)")
     p.add_argument("--json-out", metavar="FILE", default=None, help="write the metrics as JSON")
     p.add_argument("--png", metavar="DIR", default=None, help="write measured-vs-predicted plots here")
+    p.add_argument("--session-shift", action="store_true",
+                   help="also fit, per joint, a torque offset and a friction scale on the logs' residual "
+                        "and say how much of the error such a shift of the session explains")
     options.add_overwrite_argument(p, "existing JSON and plot files")
     add_preprocess_arguments(p, trim_default=False)
     options.add_payload_argument(p, "its torque adds to the arm's prediction")
@@ -58,25 +61,38 @@ def run(args: argparse.Namespace) -> int:
     if len(models) > 1:  # each parameters file predicts the same recordings; one file streams them
         recordings = list(recordings)
     results = []
+    shifts = {}
     for path, m in models:
         check_compatible(m, spec, str(path))
         config = prediction_config(m, **preprocess_overrides(args))
         prediction = predict_recordings(m, recordings, spec, config=config, payload=payload,
                                         drive_gains=args.drive_gains or None)
         results.append((path, prediction.validation()))
+        if args.session_shift:
+            from urident.ident.sessions import session_shift
+
+            shifts[path] = session_shift(m, spec, prediction.data, prediction.tau_predicted)
     for path, r in results:
         print(f"{path} ({r.method}, {r.n_samples} samples): e_N = {r.e_n:.4f}, "
               f"mean RMS {r.mean_rms_nm:.3f} N·m")
         print("  rms_nm  " + " ".join(f"{v:6.2f}" for v in r.rms_nm))
         print("  rre_pct " + " ".join(f"{v:6.1f}" for v in r.rre_pct))
+        if path in shifts:
+            print(shifts[path].text())
     if not args.drive_gains and any(list(m.drive_gains) == list(spec.drive_gains) for _, m in models):
         note = spec.nominal_note(("torque_constant", "gear_ratio"))
         if note:  # measured torques = the robot file's drive gains × current
             print(note)
     if args.json_out:
-        report = dict(results[0][1].as_dict(), params=str(results[0][0]), payload=args.payload)
+        def entry(p, r):
+            d = dict(r.as_dict(), params=str(p))
+            if p in shifts:
+                d["session_shift"] = shifts[p].as_dict()
+            return d
+
+        report = dict(entry(*results[0]), payload=args.payload)
         if len(results) > 1:
-            report["results"] = [dict(r.as_dict(), params=str(p)) for p, r in results]
+            report["results"] = [entry(p, r) for p, r in results]
         from urident.fileio import write_text_atomic
 
         write_text_atomic(args.json_out, json.dumps(report, indent=2) + "\n", overwrite=args.overwrite)
