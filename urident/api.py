@@ -117,7 +117,8 @@ class Identification:
 def identify(logs, robot, method: str = "ols", preset: str | None = None, *, model=None,
              weighting: str | None = None, select_dahl_rad: bool | None = None, preprocess=None,
              drive_gains=None, payload=None, regularisation: float | None = None,
-             log_options: Mapping | None = None, progress: bool = False) -> Identification:
+             log_options: Mapping | None = None, progress: bool = False,
+             sessions: bool = False) -> Identification:
     """Identify base parameters from ``logs`` (paths or Recordings, loaded one at a time).
 
     ``method``: ``ols`` (the paper's), ``bounded``, ``consistent`` or ``all``. ``preset``: a named
@@ -126,7 +127,9 @@ def identify(logs, robot, method: str = "ols", preset: str | None = None, *, mod
     :class:`urident.ident.PreprocessConfig` (default: rest trimmed). ``drive_gains``: six joint-side
     gains i_G·k [N·m/A], a GAINS.yaml path, or None for the robot file's. ``payload``: a
     :class:`urident.ident.payload.Payload` or a payload file the logs carry (its torque is removed).
-    ``log_options``: keyword arguments of :func:`urident.logs.load_log` for paths."""
+    ``log_options``: keyword arguments of :func:`urident.logs.load_log` for paths. ``sessions``:
+    each log is a session of its own; a per-session torque offset and friction scale are kept per
+    joint where blocked CV says they pay (:func:`urident.ident.sessions.fit_sessions`)."""
     from urident.ident import PreprocessConfig, identify_all, prepare
     from urident.ident.estimate_consistent import DEFAULT_REGULARISATION
     from urident.ident.presets import CV_FOLDS, DAHL_GRID, get_preset
@@ -179,6 +182,11 @@ def identify(logs, robot, method: str = "ols", preset: str | None = None, *, mod
         selection = (f"dahl_rad selected by {CV_FOLDS}-fold blocked CV on the identification data: "
                      f"{model.dahl_rad:g} rad (mean held-out RMS [N·m] per distance: "
                      + ", ".join(f"{s.model.dahl_rad:g}: {s.mean_rms_nm:.3f}" for s in scores) + ")")
+    if sessions:
+        from urident.ident.sessions import fit_sessions
+
+        data, session_terms = fit_sessions(spec, data, model, weighting)
+        selection = (selection + "\n" if selection else "") + session_terms.text()
     reg = DEFAULT_REGULARISATION if regularisation is None else regularisation
     models = identify_all(spec, data, methods, model, weighting, reg, config)
     report = "\n".join(signals) + "\n" + comparison_report(models)
@@ -210,6 +218,7 @@ class Validation:
     results: tuple
     params: tuple[str, ...]
     payload: str | None = None
+    shifts: tuple = ()   # per result, the session shift fitted on its residual (or None)
 
     @property
     def result(self):
@@ -242,9 +251,17 @@ class Validation:
     def to_dict(self) -> dict:
         """The document ``urident validate --json-out`` writes: the first result's metrics, and
         every result under ``results`` when several parameters files were compared."""
-        document = dict(self.result.as_dict(), params=self.params[0], payload=self.payload)
+        shifts = self.shifts or (None,) * len(self.results)
+
+        def entry(p, r, shift):
+            d = dict(r.as_dict(), params=p)
+            if shift is not None:
+                d["session_shift"] = shift.as_dict()
+            return d
+
+        document = dict(entry(self.params[0], self.result, shifts[0]), payload=self.payload)
         if len(self.results) > 1:
-            document["results"] = [dict(r.as_dict(), params=p) for p, r in zip(self.params, self.results)]
+            document["results"] = [entry(*e) for e in zip(self.params, self.results, shifts)]
         return document
 
     def to_json(self, indent: int | None = 2) -> str:
@@ -254,14 +271,16 @@ class Validation:
 def validate(params, logs, robot=None, *, payload=None, drive_gains=None,
              log_options: Mapping | None = None, progress: bool = False,
              names: Sequence[str] | None = None, payload_name: str | None = None,
-             **preprocess_overrides) -> Validation:
+             session_shift: bool = False, **preprocess_overrides) -> Validation:
     """Predict the torques of ``logs`` with ``params`` and compare with the measured ones.
 
     ``params``: an :class:`Identification` (its primary estimate), an IdentifiedModel, a
     parameters file, or a list of them to compare. Preprocessing follows each parameters file
     (:func:`urident.ident.prediction_config`); ``preprocess_overrides`` (``filter_hz``,
     ``trim_rest``, ...) override it. ``robot`` defaults to the parameters' robot; ``names``
-    label the parameters in the result (default: their files), ``payload_name`` the payload."""
+    label the parameters in the result (default: their files), ``payload_name`` the payload.
+    ``session_shift``: also fit a per-joint torque offset and friction scale on each residual and
+    say how much of the error such a session shift explains."""
     from urident.ident import load_params, predict_recordings, prediction_config
     from urident.ident.identify import check_compatible
 
@@ -291,16 +310,22 @@ def validate(params, logs, robot=None, *, payload=None, drive_gains=None,
     recordings = _recordings(paths, spec.name, **dict(log_options or {}))
     if len(models) > 1:  # each parameters file predicts the same recordings; one file streams them
         recordings = list(recordings)
-    results = []
+    results, shifts = [], []
     for name, m in models:
         check_compatible(m, spec, name)
         config = prediction_config(m, **preprocess_overrides)
         prediction = predict_recordings(m, recordings, spec, config=config, payload=load,
                                         drive_gains=drive_gains)
         results.append(prediction.validation())
+        shift = None
+        if session_shift:
+            from urident.ident.sessions import session_shift as fit_shift
+
+            shift = fit_shift(m, spec, prediction.data, prediction.tau_predicted)
+        shifts.append(shift)
     if payload_name is None and isinstance(payload, (str, Path)):
         payload_name = str(payload)
-    return Validation(tuple(results), tuple(n for n, _ in models), payload_name)
+    return Validation(tuple(results), tuple(n for n, _ in models), payload_name, tuple(shifts))
 
 
 # --------------------------------------------------------------------------- gap, trajectories

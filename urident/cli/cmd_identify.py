@@ -116,6 +116,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--report", metavar="FILE", default=None, help="also write the comparison table here")
     p.add_argument("--png", metavar="DIR", default=None,
                    help="write fit plots (measured vs predicted, base parameters) as PNG here")
+    p.add_argument("--sessions", action="store_true",
+                   help="each log is a session (another day): fit the shared parameters with, per "
+                        "session, a torque offset and a friction scale on the joints where blocked "
+                        "cross-validation says they pay (the first log is the reference); the report "
+                        "lists them, the parameters file holds the shared model")
     options.add_overwrite_argument(p, "existing parameters, URDF, report and plot files")
     add_model_arguments(p)
     add_preprocess_arguments(p, trim_default=True)
@@ -206,7 +211,8 @@ def run(args: argparse.Namespace) -> int:
         (load_log_from_args(path, args, robot=spec.name) for path in progress_iter(paths, "loading logs")),
         spec, args.method, preset_name(args), model=model, weighting=weighting, select_dahl_rad=select,
         preprocess=preprocess_config(args), drive_gains=args.drive_gains,
-        payload=options.load_payload_arg(args, spec), regularisation=args.regularisation)
+        payload=options.load_payload_arg(args, spec), regularisation=args.regularisation,
+        sessions=args.sessions)
     written = [str(p) for p in result.save(out, overwrite=args.overwrite)]
     models, data, text = result.models, result.data, result.report
     priors = ("inertia_com", "rotor_inertia", "viscous_friction", "coulomb_friction")

@@ -25,6 +25,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--robot", default=None, help="robot (default: the parameters file's)")
     p.add_argument("--json-out", metavar="FILE", default=None, help="write the metrics as JSON")
     p.add_argument("--png", metavar="DIR", default=None, help="write measured-vs-predicted plots here")
+    p.add_argument("--session-shift", action="store_true",
+                   help="also fit, per joint, a torque offset and a friction scale on the logs' residual "
+                        "and say how much of the error such a shift of the session explains")
     options.add_overwrite_argument(p, "existing JSON and plot files")
     add_preprocess_arguments(p, trim_default=False)
     options.add_payload_argument(p, "its torque adds to the arm's prediction")
@@ -51,13 +54,15 @@ def run(args: argparse.Namespace) -> int:
                   for p in progress_iter(args.logs, "loading logs"))
     validation = api.validate([m for _, m in models], recordings, spec, payload=payload,
                               drive_gains=args.drive_gains or None, names=list(args.params),
-                              payload_name=args.payload, **preprocess_overrides(args))
+                              payload_name=args.payload, session_shift=args.session_shift, **preprocess_overrides(args))
     results = list(zip(args.params, validation.results))
-    for path, r in results:
+    for (path, r), shift in zip(results, validation.shifts):
         print(f"{path} ({r.method}, {r.n_samples} samples): e_N = {r.e_n:.4f}, "
               f"mean RMS {r.mean_rms_nm:.3f} N·m")
         print("  rms_nm  " + " ".join(f"{v:6.2f}" for v in r.rms_nm))
         print("  rre_pct " + " ".join(f"{v:6.1f}" for v in r.rre_pct))
+        if shift is not None:
+            print(shift.text())
     if not args.drive_gains and any(list(m.drive_gains) == list(spec.drive_gains) for _, m in models):
         note = spec.nominal_note(("torque_constant", "gear_ratio"))
         if note:  # measured torques = the robot file's drive gains × current

@@ -5,9 +5,10 @@ The family (:func:`family`) covers the friction forms labs publish for UR-type h
 columns linear in their coefficients (:mod:`urident.ident.features`): a constant offset, Coulomb
 asymmetry |z|, Gaz et al.'s sigmoid with a velocity offset (linearised: tanh(q̇/ε) and tanh²(q̇/ε),
 ε on a grid), a smooth sigmoid alone, Stribeck (v_s on a grid), square-root and quadratic viscous
-(linear viscous is in the base set), load-dependent Coulomb, a Dahl presliding state (δ on a
-grid) and position-dependent Coulomb friction at harmonics 1-3 of the joint angle. Joint
-temperature is not offered: prepared data carry no temperature yet.
+(linear viscous is in the base set), load-dependent Coulomb and position-dependent Coulomb
+friction at harmonics 1-3 of the joint angle; the Dahl presliding state is a choice of the joint's
+Coulomb state (below), not a term beside it. Joint temperature is not offered: prepared data carry
+no temperature yet. Choices and measurements: ``docs/friction-selection.md``.
 
 Procedure, for each Coulomb state of the base model (tanh, ε = the model's; a Dahl state driven by
 ∫q̇ with δ from :data:`DAHL_GRID`):
