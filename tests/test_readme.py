@@ -12,62 +12,15 @@ pointing into the test's own directory, so the checkout is never written.
 
 from __future__ import annotations
 
-import os
-import re
-import shlex
-import shutil
-import subprocess
-import sys
-from pathlib import Path
-
 import pytest
-from readme_helpers import bash_blocks, block_commands
+from readme_helpers import file_blocks, run_as_written, selected
 from shared_data import shared_data_dir
 
-ROOT = Path(__file__).resolve().parent.parent
 SHARED = shared_data_dir().parent  # the README reads ../shared/data
-OUTPUT_FLAGS = ("--out", "--json-out", "--save", "--urdf", "--png", "--report", "--mjcf", "--write-sim", "--bag")
-NOT_HERE = (re.compile(r"^(pip|pytest|docker|ros2)\b"), re.compile(r"^urident (demo|excite)\b"),
-            re.compile(r"--host\b"), re.compile(r"&$"), re.compile(r"^kill\b"))
-
-
-def readme_blocks() -> list[list[tuple[dict, str]]]:
-    return [block_commands(block) for block in bash_blocks()]
 
 
 def readme_commands() -> list[tuple[dict, str]]:
-    return [c for block in readme_blocks() for c in block]
-
-
-def outputs(command: str) -> list[str]:
-    words = shlex.split(command)
-    return [words[k + 1] for k, w in enumerate(words[:-1]) if w in OUTPUT_FLAGS]
-
-
-def runnable(commands: list[tuple[dict, str]]) -> tuple[list[tuple[dict, str]], list[str]]:
-    """The commands of one block to run here, and the ones skipped."""
-    keep, skipped, unavailable = [], [], set()
-    for env, command in commands:
-        words = shlex.split(command)
-        needs_skipped = any(w in unavailable for w in words if w not in outputs(command))
-        own_recording = any(not (ROOT / w).exists() and w not in outputs(command)
-                            for w in words if re.fullmatch(r"logs/[\w.-]+\.csv", w))
-        if needs_skipped or own_recording or any(p.search(command) for p in NOT_HERE):
-            skipped.append(command)
-            unavailable.update(outputs(command))
-        else:
-            keep.append((env, command))
-            unavailable.difference_update(outputs(command))
-    return keep, skipped
-
-
-def selected() -> tuple[list[tuple[dict, str]], list[str]]:
-    keep, skipped = [], []
-    for block in readme_blocks():
-        k, s = runnable(block)
-        keep += k
-        skipped += s
-    return keep, skipped
+    return [c for block in file_blocks() for c in block]
 
 
 def test_readme_command_selection_is_what_the_docstring_says():
@@ -86,21 +39,6 @@ def test_readme_command_selection_is_what_the_docstring_says():
 
 @pytest.mark.skipif(not (SHARED / "data").is_dir(), reason="needs ../shared/data")
 def test_readme_commands_run_as_written(tmp_path):
-    work = tmp_path / "repo"
-    work.mkdir()
-    for name in ("logs", "experiments"):
-        shutil.copytree(ROOT / name, work / name)
-    (work / "urident").symlink_to(ROOT / "urident")
-    (tmp_path / "shared").symlink_to(SHARED)
-    scratch = tmp_path / "tmp"
-    scratch.mkdir()
-    env = dict(os.environ)
-    env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
     keep, _ = selected()
     assert len(keep) >= 10
-    for variables, command in keep:
-        line = command.replace("/tmp/", f"{scratch}/")
-        result = subprocess.run(["bash", "-c", line], cwd=work, env={**env, **variables},
-                                capture_output=True, text=True, timeout=600)
-        assert result.returncode == 0, f"README command failed: {command}\n{result.stderr[-2000:]}"
-        assert "Traceback" not in result.stderr, command
+    run_as_written(keep, tmp_path, SHARED)
