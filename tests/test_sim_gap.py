@@ -121,9 +121,10 @@ def test_write_sim_changes_exactly_what_it_says(ur5_models, tmp_path):
     out = write_corrected(sim, spec, changes, tmp_path / "corrected.xml", notes=["a note"])
     new = load_sim_model(out, spec)
     assert "a note" in out.read_text()
-    np.testing.assert_allclose(new.handle.dof_armature, sim.handle.dof_armature + changes["armature"], atol=1e-12)
-    np.testing.assert_allclose(new.handle.dof_damping, changes["damping"], atol=1e-12)
-    np.testing.assert_allclose(new.handle.dof_frictionloss.sum() + new.handle.tendon_frictionloss.sum(), 5.0)
+    # MuJoCo's writer keeps 6 significant digits
+    np.testing.assert_allclose(new.handle.dof_armature, sim.handle.dof_armature + changes["armature"], rtol=1e-5)
+    np.testing.assert_allclose(new.handle.dof_damping, changes["damping"], rtol=1e-5)
+    np.testing.assert_allclose(new.handle.dof_frictionloss.sum() + new.handle.tendon_frictionloss.sum(), 5.0, rtol=1e-5)
     # gravity torques at rest: exactly the mass/first-moment change and a point mass at the tool
     rng = np.random.default_rng(3)
     q = rng.uniform(-2, 2, (20, 6))
@@ -134,7 +135,7 @@ def test_write_sim_changes_exactly_what_it_says(ur5_models, tmp_path):
     from urident.ident.features import payload_columns
 
     expected = blocks @ delta + 1.5 * payload_columns(blocks, spec.tool_xyz)[:, :, 0]
-    np.testing.assert_allclose(new.predict(q, zero, zero) - sim.predict(q, zero, zero), expected, atol=1e-9)
+    np.testing.assert_allclose(new.predict(q, zero, zero) - sim.predict(q, zero, zero), expected, atol=2e-4)
     # in motion too: the correction keeps the link's inertia about its joint frame, as its columns do
     qd, qdd = rng.normal(0, 1, q.shape), rng.normal(0, 3, q.shape)
     blocks = regressor_blocks(spec, q, qd, qdd)

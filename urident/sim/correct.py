@@ -41,103 +41,163 @@ def _inertia(changes: dict, i: int) -> np.ndarray:
     return np.asarray(changes["inertia"][i], float) if "inertia" in changes else np.zeros((3, 3))
 
 
-def _mjcf_text(sim, spec, changes: dict, notes) -> str:
+def _robot_frames(sim, spec) -> tuple[np.ndarray, np.ndarray]:
+    """The robot's joint frames K_1 … K_6 and the tool frame at q = 0 in the user's world
+    (rotations (7, 3, 3), origins (7, 3)), through the model's alignment."""
     from urident.model.kinematics import frame_poses
-    from urident.sim.mjcf import FRICTION_PIECES, friction_softness, mujoco_inertia, quaternion
-    from urident.sim.mujoco_model import import_mujoco
 
-    mj = import_mujoco()
-    model = sim.handle
-    tree = _parse(sim.path)
-    root = tree.getroot()
-    parents = {child: parent for parent in root.iter() for child in parent}
-    data = mj.MjData(model)
-    data.qpos[:] = 0
-    mj.mj_kinematics(model, data)
     rot, pos = frame_poses(spec, np.zeros((1, 6)))
-    tendons = root.find("tendon")
+    return np.einsum("ji,kjl->kil", sim.alignment.rotation, rot[0]), sim.alignment.to_user(pos[0])
+
+
+#: relative slack kept in the triangle inequality of written principal moments (6 written digits)
+WRITE_MARGIN = 2e-5
+
+
+def _principal(inertia: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(principal moments (3,), MuJoCo quaternion of the principal axes) of a symmetric inertia."""
+    from urident.sim.mjcf import quaternion
+
+    eig, vec = np.linalg.eigh((inertia + inertia.T) / 2)
+    if np.linalg.det(vec) < 0:
+        vec[:, 2] = -vec[:, 2]
+    return _with_margin(eig), quaternion(vec)
+
+
+def _with_margin(eig: np.ndarray) -> np.ndarray:
+    """Principal moments with a + b >= c kept after MuJoCo's writer rounds them to 6 digits."""
+    eig = np.array(eig, float)
+    for k in range(3):
+        others = [i for i in range(3) if i != k]
+        short = eig[k] * (1 + WRITE_MARGIN) - eig[others].sum()
+        if short > 0:
+            eig[others] += short / 2
+    return eig
+
+
+def _loadable_after_writing(edit) -> None:
+    """Bodies whose principal moments MuJoCo's 6-digit writer would round into a + b < c (a
+    consistent estimate on its constraint's boundary) get :data:`WRITE_MARGIN` of slack; no other
+    value changes."""
+    model = edit.compile()
+    bodies = {b.id: b for b in edit.bodies}
+    for k in range(1, model.nbody):
+        eig = np.array(model.body_inertia[k], float)
+        rounded = np.array([float(f"{v:.6g}") for v in eig])
+        if k in bodies and any(rounded[i] > rounded.sum() - rounded[i] for i in range(3)):
+            body = bodies[k]
+            body.explicitinertial = True
+            body.mass, body.ipos = float(model.body_mass[k]), np.array(model.body_ipos[k])
+            body.iquat, body.inertia = np.array(model.body_iquat[k]), _with_margin(eig)
+            body.fullinertia = np.full(6, np.nan)
+
+
+def _numbers(text: str) -> list[float]:
+    return [float(v) for v in text.split()]
+
+
+def _relocate_assets(mjspec, source: Path, out: Path) -> None:
+    """Keep the mesh and texture files found from the written file's folder (MuJoCo resolves them
+    relative to the model file's folder)."""
+    import os
+
+    src, dst = source.resolve().parent, out.resolve().parent
+    if src == dst:
+        return
+    for attr in ("meshdir", "texturedir"):
+        old = getattr(mjspec, attr) or ""
+        if not os.path.isabs(old):
+            setattr(mjspec, attr, os.path.relpath(src / old, dst) + "/")
+
+
+def _mjcf_text(sim, spec, changes: dict, notes, out: Path | None = None) -> str:
+    """The user's model (its ``mujoco.MjSpec``: defaults, classes, actuators, keyframes, meshes kept;
+    includes written inline) with the joint drive terms, the links' inertials and a payload body
+    changed, written by MuJoCo."""
+    from urident.sim.mjcf import FRICTION_PIECES, friction_softness, mujoco_inertia
+    from urident.sim.mujoco_model import body_poses, spec_to_xml
+
+    model = sim.handle
+    edit = sim.mjspec.copy()
+    rot, pos = _robot_frames(sim, spec)
+    b = body_poses(model, sim.joint_ids, np.zeros(6))
+    drive = sim.drive()
     for i, name in enumerate(sim.joint_names):
-        joint = root.find(f".//joint[@name='{name}']")
+        joint = edit.joint(name)
         if joint is None:
             raise ConfigError(f"{sim.path}: <joint name={name!r}> not found to correct")
-        dof = model.jnt_dofadr[i]
-        joint.set("armature", f"{max(model.dof_armature[dof] + changes['armature'][i], 0.0):.12g}")
-        joint.set("damping", f"{max(model.dof_damping[dof] + changes['damping'][i], 0.0):.12g}")
+        dof = int(sim.dof_adr[i])
+        joint.armature = max(model.dof_armature[dof] + changes["armature"][i], 0.0)
+        joint.damping = max(model.dof_damping[dof] + changes["damping"][i], 0.0)
         if changes["frictionloss"][i] != 0:
-            old = model.dof_frictionloss[dof]
-            for t in range(model.ntendon):
-                if mj.mj_id2name(model, mj.mjtObj.mjOBJ_TENDON, t) == f"{name}_friction":
-                    old += model.tendon_frictionloss[t]
-            fc = max(old + changes["frictionloss"][i], 0.0)
+            fc = max(drive["frictionloss"][i] + changes["frictionloss"][i], 0.0)
             w = float(model.dof_invweight0[dof])
             (s1, k1), (s2, k2) = FRICTION_PIECES
             ref, imp = friction_softness(fc * s1, w, sim.friction_eps / k1)
-            joint.set("frictionloss", f"{fc * s1:.12g}")
-            joint.set("solreffriction", ref)
-            joint.set("solimpfriction", imp)
-            if tendons is None:
-                tendons = ET.SubElement(root, "tendon")
-            for old_t in tendons.findall(f"fixed[@name='{name}_friction']"):
-                tendons.remove(old_t)
+            joint.frictionloss = fc * s1
+            joint.solref_friction, joint.solimp_friction = _numbers(ref), _numbers(imp)
+            old = edit.tendon(f"{name}_friction")
+            if old is not None:
+                edit.delete(old)
             ref, imp = friction_softness(fc * s2, w, sim.friction_eps / k2)
-            fixed = ET.SubElement(tendons, "fixed", name=f"{name}_friction", frictionloss=f"{fc * s2:.12g}",
-                                  solreffriction=ref, solimpfriction=imp)
-            ET.SubElement(fixed, "joint", joint=name, coef="1")
+            tendon = edit.add_tendon(name=f"{name}_friction", frictionloss=fc * s2,
+                                     solref_friction=_numbers(ref), solimp_friction=_numbers(imp))
+            tendon.wrap_joint(name, 1.0)
         dm, dh, di = changes["mass"][i], changes["first_moment"][i], _inertia(changes, i)
         if dm != 0 or np.any(dh != 0) or np.any(di != 0):
-            b = int(model.jnt_bodyid[i])
-            body = parents[joint]
-            m = float(model.body_mass[b])
-            xb, rb = np.array(data.xpos[b]), np.array(data.xmat[b]).reshape(3, 3)
-            com = np.array(data.xipos[b])
-            first = m * (com - pos[0, i]) + rot[0, i] @ dh      # about K_i's origin, world axes
+            body = joint.parent
+            k = int(model.jnt_bodyid[sim.joint_ids[i]])
+            m = float(b["mass"][k])
+            xb, rb, com = b["xpos"][k], b["xmat"][k], b["xipos"][k]
+            first = m * (com - pos[i]) + rot[i] @ dh      # about K_i's origin, world axes
             mass = m + dm
             if not mass > 0:
-                raise ConfigError(f"{sim.path}: correcting body {body.get('name')!r} leaves mass {mass:g} kg")
-            new_com = pos[0, i] + first / mass
-            ipos = rb.T @ (new_com - xb)
+                raise ConfigError(f"{sim.path}: correcting body {body.name!r} leaves mass {mass:g} kg")
+            new_com = pos[i] + first / mass
             # the correction keeps the inertia about K_i's origin (its columns are m and m·ρ only)
-            ri = np.array(data.ximat[b]).reshape(3, 3)
-            i_com = ri @ np.diag(model.body_inertia[b]) @ ri.T
-            about_k = i_com + m * _shift(com - pos[0, i]) + rot[0, i] @ di @ rot[0, i].T
-            i_new = about_k - mass * _shift(new_com - pos[0, i])
+            about_k = b["inertia"][k] + m * _shift(com - pos[i]) + rot[i] @ di @ rot[i].T
+            i_new = about_k - mass * _shift(new_com - pos[i])
             if np.linalg.eigvalsh(i_new).min() < 0:
-                raise ConfigError(f"{sim.path}: the mass/CoM correction of body {body.get('name')!r} is not a "
+                raise ConfigError(f"{sim.path}: the mass/CoM correction of body {body.name!r} is not a "
                                   "real mass distribution (drop it: unrealisable_links)")
             i_new, _ = mujoco_inertia(i_new)
-            i_body = rb.T @ i_new @ rb
-            for old_i in body.findall("inertial"):
-                body.remove(old_i)
-            inertial = ET.Element("inertial", pos=_fmt(ipos), mass=f"{mass:.12g}", fullinertia=_fmt(
-                [i_body[0, 0], i_body[1, 1], i_body[2, 2], i_body[0, 1], i_body[0, 2], i_body[1, 2]]))
-            body.insert(0, inertial)
+            moments, iquat = _principal(rb.T @ i_new @ rb)
+            body.explicitinertial = True
+            body.mass, body.ipos, body.iquat, body.inertia = mass, rb.T @ (new_com - xb), iquat, moments
+            body.fullinertia = np.full(6, np.nan)
     payload = changes.get("payload")
     if payload is not None and payload[0] > 0:
-        last = parents[root.find(f".//joint[@name='{sim.joint_names[-1]}']")]
-        b = int(model.jnt_bodyid[len(sim.joint_names) - 1])
-        xb, rb = np.array(data.xpos[b]), np.array(data.xmat[b]).reshape(3, 3)
-        tool = rb.T @ (pos[0, 6] - xb)
-        body = ET.SubElement(last, "body", name="payload", pos=_fmt(tool), quat=_fmt(quaternion(np.eye(3))))
-        ET.SubElement(body, "inertial", pos="0 0 0", mass=f"{payload[0]:.12g}",
-                      diaginertia=_fmt(np.full(3, 1e-6 * payload[0])))
-    for line in reversed(list(notes)):
-        root.insert(0, ET.Comment(" " + line.replace("--", "- -") + " "))
-    ET.indent(tree)
-    return '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+        last = edit.joint(sim.joint_names[-1]).parent
+        k = int(model.jnt_bodyid[sim.joint_ids[-1]])
+        xb, rb = b["xpos"][k], b["xmat"][k]
+        old = edit.body("payload")
+        if old is not None:
+            edit.delete(old)
+        last.add_body(name="payload", pos=rb.T @ (pos[6] - xb), quat=[1.0, 0, 0, 0], explicitinertial=True,
+                      ipos=np.zeros(3), iquat=[1.0, 0, 0, 0],
+                      mass=float(payload[0]), inertia=np.full(3, 1e-6 * payload[0]))
+    lines = [line.replace("--", "- -") for line in notes]
+    if edit.comment:
+        lines.append(edit.comment.strip())
+    edit.comment = " " + "\n     ".join(lines) + " " if lines else edit.comment
+    if out is not None:
+        _relocate_assets(edit, sim.path, out)
+    _loadable_after_writing(edit)
+    return spec_to_xml(edit)
 
 
 def _urdf_text(sim, spec, changes: dict, notes) -> str:
     import pinocchio as pin
 
     from urident.ident.urdf import matrix_rpy, payload_link
-    from urident.model.kinematics import frame_poses
     from urident.model.robot import rpy_to_matrix
 
     tree = _parse(sim.path)
     root = tree.getroot()
     model, data = sim.handle
     pin.forwardKinematics(model, data, np.zeros(model.nq))
-    rot, pos = frame_poses(spec, np.zeros((1, 6)))
+    rot, pos = _robot_frames(sim, spec)
+    rot, pos = rot[None], pos[None]
     for i, name in enumerate(sim.joint_names):
         joint = root.find(f"joint[@name='{name}']")
         dyn = joint.find("dynamics")
@@ -210,35 +270,26 @@ def unrealisable_links(sim, spec, changes: dict) -> list[int]:
     """0-based links whose mass/CoM correction, with the inertia about the joint frame kept (as
     the correction's columns assume), leaves no real mass distribution (inertia about the new CoM
     not positive semi-definite): such a correction cannot be written."""
-    from urident.model.kinematics import frame_poses
-
     if sim.fmt != "mjcf":
         return _unrealisable_urdf(sim, spec, changes)
-    from urident.sim.mujoco_model import import_mujoco
+    from urident.sim.mujoco_model import body_poses
 
-    mj = import_mujoco()
-    model = sim.handle
-    data = mj.MjData(model)
-    mj.mj_kinematics(model, data)
-    _, pos = frame_poses(spec, np.zeros((1, 6)))
-    rot, _ = frame_poses(spec, np.zeros((1, 6)))
+    bp = body_poses(sim.handle, sim.joint_ids, np.zeros(6))
+    rot, pos = _robot_frames(sim, spec)
     out = []
     for i in range(len(sim.joint_names)):
         dm, dh, di = changes["mass"][i], changes["first_moment"][i], _inertia(changes, i)
         if dm == 0 and not np.any(dh != 0) and not np.any(di != 0):
             continue
-        b = int(model.jnt_bodyid[i])
-        m = float(model.body_mass[b])
-        com = np.array(data.xipos[b])
-        ri = np.array(data.ximat[b]).reshape(3, 3)
-        about_k = (ri @ np.diag(model.body_inertia[b]) @ ri.T + m * _shift(com - pos[0, i])
-                   + rot[0, i] @ di @ rot[0, i].T)
+        k = int(sim.handle.jnt_bodyid[sim.joint_ids[i]])
+        m, com = float(bp["mass"][k]), bp["xipos"][k]
+        about_k = bp["inertia"][k] + m * _shift(com - pos[i]) + rot[i] @ di @ rot[i].T
         mass = m + dm
         if not mass > 0:
             out.append(i)
             continue
-        new_com = pos[0, i] + (m * (com - pos[0, i]) + rot[0, i] @ dh) / mass
-        if np.linalg.eigvalsh(about_k - mass * _shift(new_com - pos[0, i])).min() < 0:
+        new_com = pos[i] + (m * (com - pos[i]) + rot[i] @ dh) / mass
+        if np.linalg.eigvalsh(about_k - mass * _shift(new_com - pos[i])).min() < 0:
             out.append(i)
     return out
 
@@ -265,7 +316,7 @@ def write_corrected(sim, spec, changes: dict, path: str | Path, *, notes=(), ove
     """Write ``sim`` with ``changes`` (:func:`urident.gap.sim_baseline.corrections`) to ``path``."""
     from urident.fileio import write_text_atomic
 
-    text = _mjcf_text(sim, spec, changes, notes) if sim.fmt == "mjcf" else _urdf_text(sim, spec, changes, notes)
     path = Path(path)
+    text = _mjcf_text(sim, spec, changes, notes, path) if sim.fmt == "mjcf" else _urdf_text(sim, spec, changes, notes)
     write_text_atomic(path, text, fsync=False, overwrite=overwrite)
     return path
