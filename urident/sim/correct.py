@@ -1,15 +1,27 @@
 """Write a user's simulator model with the corrections the gap found (``urident gap --write-sim``).
 
-The file is edited, not regenerated: everything else in it stays. Per joint: armature, damping
-and Coulomb friction become the model's value plus the correction (MJCF: ``frictionloss`` in the
-two pieces of :mod:`urident.sim.mjcf`, joint and fixed tendon ``<joint>_friction``, so MuJoCo's
-force follows tanh(q̇/ε); URDF: ``<dynamics damping friction>``). A link's mass and first-moment
-correction (about the robot's joint frame K_i, turned into the body's frame) moves its inertial's
-mass and centre of mass and keeps its inertia about K_i's origin, as the correction's columns do; a link
-inertia correction (about K_i's origin, K_i's axes) is added to that inertia. A payload is a
-point mass body ``payload`` at the tool point (MJCF), a fixed link ``payload`` there (URDF). URDF has
-no armature (the caller lists it as not expressible). A world base frame is assumed to be the robot's
-(the model loader checked the chain against the robot file).
+The user's file is edited, not regenerated. MJCF: through its ``mujoco.MjSpec`` (MuJoCo's own
+editor), so default classes, childclasses, actuators, keyframes, meshes and the file's top comment
+stay; MuJoCo's writer puts ``<include>`` files inline, writes actuators in their general form and
+numbers with 6 significant digits (principal moments keep a + b ≥ c after that rounding), and
+``meshdir``/``texturedir`` are rewritten to reach the same files from the written file's folder.
+URDF: ElementTree on the user's file (comments kept), only ``<dynamics>`` and ``<inertial>`` change.
+
+What changes, per attribute:
+
+* joint ``armature`` (MJCF), ``damping``: the model's value plus the correction;
+* Coulomb friction: MJCF ``frictionloss`` in the two pieces of :mod:`urident.sim.mjcf` (the joint's,
+  with ``solreffriction``/``solimpfriction``, and a fixed tendon ``<joint>_friction``), so MuJoCo's
+  force follows tanh(q̇/ε); URDF ``<dynamics friction>``;
+* a link's mass, first moment (about the robot's joint frame K_i) and inertia (about K_i's origin):
+  the ``<inertial>`` (``mass``, ``pos``, ``quat``, ``diaginertia``) of the bodies the joint moves,
+  spread over them in proportion to their masses (MJCF; URDF: the joint's child link), each keeping
+  its share of the inertia about K_i's origin as the correction's columns do;
+* a payload: a point mass body/link ``payload`` at the tool point when positive; its first-moment
+  part, and a negative mass (a tool the model carries and the arm does not), go into link 6.
+
+K_i is placed in the user's world through the model's base alignment (:mod:`urident.sim.chain`).
+URDF has no armature (the caller lists it as not expressible).
 """
 
 from __future__ import annotations
@@ -110,14 +122,75 @@ def _relocate_assets(mjspec, source: Path, out: Path) -> None:
             setattr(mjspec, attr, os.path.relpath(src / old, dst) + "/")
 
 
+def fold_payload(changes: dict, spec) -> dict:
+    """``changes`` with a payload correction's first-moment part, and a negative point mass (the
+    model carries a tool the arm does not), moved into link 6's mass, first moment and inertia
+    about K_6 (exactly the payload columns); a positive point mass stays a payload body."""
+    payload = changes.get("payload")
+    if payload is None:
+        return changes
+    mass, first = float(payload[0]), np.asarray(payload[1], float)
+    out = {k: (np.array(v, float) if k != "payload" else v) for k, v in changes.items()}
+    out.setdefault("inertia", np.zeros((6, 3, 3)))
+    out["inertia"] = np.array(out["inertia"], float)
+    out["first_moment"][5] += first
+    out["payload"] = None
+    if mass > 0:
+        out["payload"] = (mass, np.zeros(3))
+    elif mass < 0:
+        tool = np.asarray(spec.tool_xyz, float)
+        out["mass"][5] += mass
+        out["first_moment"][5] += mass * tool
+        out["inertia"][5] += mass * _shift(tool)
+    return out
+
+
+def _link_edits(sim, rot, pos, b, changes) -> dict:
+    """Per corrected link i: {body id: (mass, ipos, inertia about the CoM in body axes)} of the new
+    inertials, or None when the correction leaves no real mass distribution. A link's correction
+    is spread over the bodies it moves in proportion to their masses (a flange or gripper welded on
+    takes its share), each keeping its share of the inertia about K_i (the columns' assumption)."""
+    from urident.sim.mjcf import mujoco_inertia
+
+    out = {}
+    for i in range(len(sim.joint_names)):
+        dm, dh, di = changes["mass"][i], changes["first_moment"][i], _inertia(changes, i)
+        if dm == 0 and not np.any(dh != 0) and not np.any(di != 0):
+            continue
+        sel = [int(k) for k in np.flatnonzero((b["arm_joint"] == i) & (b["mass"] > 0))]
+        if not sel:
+            sel = [int(sim.handle.jnt_bodyid[sim.joint_ids[i]])]
+        total = float(sum(b["mass"][k] for k in sel))
+        new = {}
+        for k in sel:
+            share = b["mass"][k] / total if total > 0 else 1.0 / len(sel)
+            m, com = float(b["mass"][k]), b["xipos"][k]
+            mass = m + share * dm
+            if not mass > 0:
+                new = None
+                break
+            new_com = pos[i] + (m * (com - pos[i]) + share * rot[i] @ dh) / mass
+            about_k = b["inertia"][k] + m * _shift(com - pos[i]) + share * rot[i] @ di @ rot[i].T
+            i_new = about_k - mass * _shift(new_com - pos[i])
+            if np.linalg.eigvalsh(i_new).min() < -1e-12 * max(np.abs(about_k).max(), 1e-300):
+                new = None
+                break
+            i_new, _ = mujoco_inertia(i_new)
+            rb, xb = b["xmat"][k], b["xpos"][k]
+            new[k] = (mass, rb.T @ (new_com - xb), rb.T @ i_new @ rb)
+        out[i] = new
+    return out
+
+
 def _mjcf_text(sim, spec, changes: dict, notes, out: Path | None = None) -> str:
     """The user's model (its ``mujoco.MjSpec``: defaults, classes, actuators, keyframes, meshes kept;
     includes written inline) with the joint drive terms, the links' inertials and a payload body
     changed, written by MuJoCo."""
-    from urident.sim.mjcf import FRICTION_PIECES, friction_softness, mujoco_inertia
+    from urident.sim.mjcf import FRICTION_PIECES, friction_softness
     from urident.sim.mujoco_model import body_poses, spec_to_xml
 
     model = sim.handle
+    changes = fold_payload(changes, spec)
     edit = sim.mjspec.copy()
     rot, pos = _robot_frames(sim, spec)
     b = body_poses(model, sim.joint_ids, np.zeros(6))
@@ -143,27 +216,21 @@ def _mjcf_text(sim, spec, changes: dict, notes, out: Path | None = None) -> str:
             tendon = edit.add_tendon(name=f"{name}_friction", frictionloss=fc * s2,
                                      solref_friction=_numbers(ref), solimp_friction=_numbers(imp))
             tendon.wrap_joint(name, 1.0)
-        dm, dh, di = changes["mass"][i], changes["first_moment"][i], _inertia(changes, i)
-        if dm != 0 or np.any(dh != 0) or np.any(di != 0):
-            body = joint.parent
-            k = int(model.jnt_bodyid[sim.joint_ids[i]])
-            m = float(b["mass"][k])
-            xb, rb, com = b["xpos"][k], b["xmat"][k], b["xipos"][k]
-            first = m * (com - pos[i]) + rot[i] @ dh      # about K_i's origin, world axes
-            mass = m + dm
-            if not mass > 0:
-                raise ConfigError(f"{sim.path}: correcting body {body.name!r} leaves mass {mass:g} kg")
-            new_com = pos[i] + first / mass
-            # the correction keeps the inertia about K_i's origin (its columns are m and m·ρ only)
-            about_k = b["inertia"][k] + m * _shift(com - pos[i]) + rot[i] @ di @ rot[i].T
-            i_new = about_k - mass * _shift(new_com - pos[i])
-            if np.linalg.eigvalsh(i_new).min() < 0:
-                raise ConfigError(f"{sim.path}: the mass/CoM correction of body {body.name!r} is not a "
-                                  "real mass distribution (drop it: unrealisable_links)")
-            i_new, _ = mujoco_inertia(i_new)
-            moments, iquat = _principal(rb.T @ i_new @ rb)
+    bodies = None
+    for i, new in _link_edits(sim, rot, pos, b, changes).items():
+        if new is None:
+            raise ConfigError(f"{sim.path}: the mass/CoM correction of link {i + 1} (joint "
+                              f"{sim.joint_names[i]!r}) is not a real mass distribution (drop it: unrealisable_links)")
+        if bodies is None:
+            edit.compile()
+            bodies = {body.id: body for body in edit.bodies}
+        for k, (mass, ipos, i_body) in new.items():
+            if k not in bodies:
+                raise ConfigError(f"{sim.path}: body #{k} of link {i + 1} not found to correct")
+            moments, iquat = _principal(i_body)
+            body = bodies[k]
             body.explicitinertial = True
-            body.mass, body.ipos, body.iquat, body.inertia = mass, rb.T @ (new_com - xb), iquat, moments
+            body.mass, body.ipos, body.iquat, body.inertia = mass, ipos, iquat, moments
             body.fullinertia = np.full(6, np.nan)
     payload = changes.get("payload")
     if payload is not None and payload[0] > 0:
@@ -192,6 +259,7 @@ def _urdf_text(sim, spec, changes: dict, notes) -> str:
     from urident.ident.urdf import matrix_rpy, payload_link
     from urident.model.robot import rpy_to_matrix
 
+    changes = fold_payload(changes, spec)
     tree = _parse(sim.path)
     root = tree.getroot()
     model, data = sim.handle
@@ -276,25 +344,11 @@ def unrealisable_links(sim, spec, changes: dict) -> list[int]:
 
     bp = body_poses(sim.handle, sim.joint_ids, np.zeros(6))
     rot, pos = _robot_frames(sim, spec)
-    out = []
-    for i in range(len(sim.joint_names)):
-        dm, dh, di = changes["mass"][i], changes["first_moment"][i], _inertia(changes, i)
-        if dm == 0 and not np.any(dh != 0) and not np.any(di != 0):
-            continue
-        k = int(sim.handle.jnt_bodyid[sim.joint_ids[i]])
-        m, com = float(bp["mass"][k]), bp["xipos"][k]
-        about_k = bp["inertia"][k] + m * _shift(com - pos[i]) + rot[i] @ di @ rot[i].T
-        mass = m + dm
-        if not mass > 0:
-            out.append(i)
-            continue
-        new_com = pos[i] + (m * (com - pos[i]) + rot[i] @ dh) / mass
-        if np.linalg.eigvalsh(about_k - mass * _shift(new_com - pos[i])).min() < 0:
-            out.append(i)
-    return out
+    return sorted(i for i, new in _link_edits(sim, rot, pos, bp, fold_payload(changes, spec)).items() if new is None)
 
 
 def _unrealisable_urdf(sim, spec, changes: dict) -> list[int]:
+    changes = fold_payload(changes, spec)
     out = []
     for i in range(len(sim.joint_names)):
         one = {k: np.zeros_like(np.asarray(changes[k], float)) for k in ("armature", "damping", "frictionloss",

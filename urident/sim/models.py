@@ -162,23 +162,6 @@ def _lump(masses, coms, inertias) -> tuple[float, np.ndarray, np.ndarray]:
     return m, com, total
 
 
-def parse_joint_map(text: str) -> dict[str, str]:
-    """``ROBOT=MODEL,...`` (the robot file's joint names to the model's) or six model names in the
-    robot's joint order, as a dict."""
-    items = [s.strip() for s in text.split(",") if s.strip()]
-    if all("=" not in s for s in items):
-        if len(items) != 6:
-            raise ValueError(f"{len(items)} names: give the six joints in the robot's order, or ROBOT=MODEL pairs")
-        return {str(i): s for i, s in enumerate(items)}
-    out = {}
-    for s in items:
-        key, sep, value = s.partition("=")
-        if not sep or not key.strip() or not value.strip():
-            raise ValueError(f"{s!r}: not ROBOT=MODEL")
-        out[key.strip()] = value.strip()
-    return out
-
-
 def _arm_joints(path, spec, names: list[str], joint_map: dict | None, what: str) -> list[int]:
     """Indices into ``names`` of the robot's six joints, in the robot's order."""
     robot = spec.joint_names
@@ -313,7 +296,8 @@ def _load_urdf(path: Path, spec, friction_eps: float, joint_map=None) -> SimMode
 
 def load_sim_model(path: str | Path, spec, friction_eps: float = 0.01, joint_map: dict | None = None) -> SimModel:
     """The simulator model at ``path`` (MJCF or URDF, by suffix), checked against ``spec``;
-    ``joint_map``: :func:`parse_joint_map`'s dict."""
+    ``joint_map``: :func:`urident.cli.options.joint_map`'s dict (robot joint name or
+    0-based index as text → the model's joint name)."""
     path = Path(path)
     fmt = model_format(path)
     if not path.is_file():
