@@ -145,39 +145,58 @@ def fold_payload(changes: dict, spec) -> dict:
     return out
 
 
+def _edit_bodies(sel, shares, b, rot_i, pos_i, dm, dh, di) -> dict | None:
+    """{body id: (mass, ipos, inertia about the CoM in body axes)} with share s_k of the correction
+    on body k (its own inertial replaced by ``b``'s lumped one when ``sel[k]`` is a tuple of bodies),
+    or None when one would not be a real mass distribution."""
+    from urident.sim.mjcf import mujoco_inertia
+
+    new = {}
+    for group, share in zip(sel, shares):
+        group = tuple(group)
+        m0 = float(sum(b["mass"][k] for k in group))
+        com = (sum(b["mass"][k] * b["xipos"][k] for k in group) / m0) if m0 > 0 else b["xpos"][group[0]]
+        about_k = sum(b["inertia"][k] + b["mass"][k] * _shift(b["xipos"][k] - pos_i) for k in group)
+        about_k = about_k + share * rot_i @ di @ rot_i.T
+        mass = m0 + share * dm
+        if not mass > 0:
+            return None
+        new_com = pos_i + (m0 * (com - pos_i) + share * rot_i @ dh) / mass
+        i_new = about_k - mass * _shift(new_com - pos_i)
+        if np.linalg.eigvalsh(i_new).min() < -1e-12 * max(np.abs(about_k).max(), 1e-300):
+            return None
+        i_new, _ = mujoco_inertia(i_new)
+        k = group[0]
+        rb, xb = b["xmat"][k], b["xpos"][k]
+        new[k] = (mass, rb.T @ (new_com - xb), rb.T @ i_new @ rb)
+        for other in group[1:]:
+            new[other] = (0.0, np.zeros(3), np.zeros((3, 3)))
+    return new
+
+
 def _link_edits(sim, rot, pos, b, changes) -> dict:
     """Per corrected link i: {body id: (mass, ipos, inertia about the CoM in body axes)} of the new
     inertials, or None when the correction leaves no real mass distribution. A link's correction
     is spread over the bodies it moves in proportion to their masses (a flange or gripper welded on
-    takes its share), each keeping its share of the inertia about K_i (the columns' assumption)."""
-    from urident.sim.mjcf import mujoco_inertia
-
+    takes its share), each keeping its share of the inertia about K_i (the columns' assumption);
+    where that leaves one of them unreal (a tool the model carries taken off), the joint's body takes
+    the whole link's mass with no joint of its own (those bodies keep mass 0) and the correction."""
+    model = sim.handle
     out = {}
     for i in range(len(sim.joint_names)):
         dm, dh, di = changes["mass"][i], changes["first_moment"][i], _inertia(changes, i)
         if dm == 0 and not np.any(dh != 0) and not np.any(di != 0):
             continue
-        sel = [int(k) for k in np.flatnonzero((b["arm_joint"] == i) & (b["mass"] > 0))]
-        if not sel:
-            sel = [int(sim.handle.jnt_bodyid[sim.joint_ids[i]])]
+        own = int(model.jnt_bodyid[sim.joint_ids[i]])
+        sel = [int(k) for k in np.flatnonzero((b["arm_joint"] == i) & (b["mass"] > 0))] or [own]
         total = float(sum(b["mass"][k] for k in sel))
-        new = {}
-        for k in sel:
-            share = b["mass"][k] / total if total > 0 else 1.0 / len(sel)
-            m, com = float(b["mass"][k]), b["xipos"][k]
-            mass = m + share * dm
-            if not mass > 0:
-                new = None
-                break
-            new_com = pos[i] + (m * (com - pos[i]) + share * rot[i] @ dh) / mass
-            about_k = b["inertia"][k] + m * _shift(com - pos[i]) + share * rot[i] @ di @ rot[i].T
-            i_new = about_k - mass * _shift(new_com - pos[i])
-            if np.linalg.eigvalsh(i_new).min() < -1e-12 * max(np.abs(about_k).max(), 1e-300):
-                new = None
-                break
-            i_new, _ = mujoco_inertia(i_new)
-            rb, xb = b["xmat"][k], b["xpos"][k]
-            new[k] = (mass, rb.T @ (new_com - xb), rb.T @ i_new @ rb)
+        new = _edit_bodies([(k,) for k in sel], [b["mass"][k] / total if total > 0 else 1.0 / len(sel) for k in sel],
+                           b, rot[i], pos[i], dm, dh, di)
+        if new is None:
+            welded = [k for k in sel if k != own and model.body_dofnum[k] == 0]
+            moving = [k for k in sel if k != own and model.body_dofnum[k] > 0]
+            new = _edit_bodies([(own, *welded)] + [(k,) for k in moving], [1.0] + [0.0] * len(moving),
+                               b, rot[i], pos[i], dm, dh, di)
         out[i] = new
     return out
 

@@ -169,10 +169,25 @@ def body_poses(model, joint_ids, q: np.ndarray) -> dict:
 
 
 def spec_to_xml(spec) -> str:
-    """The MJCF text of ``spec`` (compiled first, as MuJoCo's writer needs)."""
+    """The MJCF text of ``spec`` (compiled first, as MuJoCo's writer needs). MuJoCo writes
+    ``angle="radian"`` with the elements' compiled values but the default classes' joint angles as
+    given: with ``angle="degree"`` those are turned into radians here (``spec`` is changed)."""
+    import xml.etree.ElementTree as ET
+
+    mujoco = import_mujoco()
     try:
         spec.compile()
-        return spec.to_xml()
+        text = spec.to_xml()
+        if spec.compiler.degree:
+            names = {d.get("class") for d in ET.fromstring(text).iter("default")} - {None} | {"main"}
+            for name in names:
+                joint = spec.find_default(name).joint
+                if joint.type in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_BALL):
+                    joint.range = np.deg2rad(joint.range)
+                    joint.ref, joint.springref = np.deg2rad(joint.ref), np.deg2rad(joint.springref)
+            spec.compile()
+            text = spec.to_xml()
+        return text
     except ValueError as exc:
         raise MujocoModelError(f"MuJoCo cannot write the corrected model: {' '.join(str(exc).split())}") from None
 
