@@ -22,8 +22,8 @@ def run_sim(args: argparse.Namespace, load_all, json_default) -> int:
     from urident.gap import GapConfig, format_report
     from urident.gap.candidates import EFFECTS
     from urident.gap.results import e_n, rms
-    from urident.gap.sim_baseline import (LINK_EFFECTS, corrections, detection_limits, diagnose_sim,
-                                          expressible, expressible_fit, link_inertia_columns)
+    from urident.gap.sim_baseline import (corrections, detection_limits, diagnose_sim, expressible,
+                                          expressible_fit, link_inertia_columns, unwritable)
     from urident.model import load_robot
     from urident.sim.models import load_sim_model, model_format
 
@@ -95,12 +95,12 @@ def run_sim(args: argparse.Namespace, load_all, json_default) -> int:
     chosen, fit = expressible_fit(result)
     from urident.sim.correct import unrealisable_links
 
-    bad = set(unrealisable_links(sim, spec, corrections(result)))
-    for c in chosen:
-        if c.effect in LINK_EFFECTS and c.joint in bad:
-            print(f"  {c.name}: not a real mass distribution (the inertia about the new centre of mass "
-                  "would not be positive): not written")
-    written = [c for c in chosen if not (c.effect in LINK_EFFECTS and c.joint in bad)]
+    all_changes = corrections(result)
+    bad = unwritable(chosen, set(unrealisable_links(sim, spec, all_changes)), all_changes)
+    for c in bad:
+        print(f"  {c.name}: not a real mass distribution (the inertia about the new centre of mass "
+              "would not be positive): not written")
+    written = [c for c in chosen if c not in bad]
     if len(written) != len(chosen):
         fit = result.correction(written)
     predicted = r0 - fit.change(result.valid) if written else r0

@@ -17,8 +17,9 @@ What changes, per attribute:
   the ``<inertial>`` (``mass``, ``pos``, ``quat``, ``diaginertia``) of the bodies the joint moves,
   spread over them in proportion to their masses (MJCF; URDF: the joint's child link), each keeping
   its share of the inertia about K_i's origin as the correction's columns do;
-* a payload: a point mass body/link ``payload`` at the tool point when positive; its first-moment
-  part, and a negative mass (a tool the model carries and the arm does not), go into link 6.
+* a payload: a point mass body/link ``payload`` near the tool point when positive (placed so that
+  it carries the first-moment part too); a negative one (a tool the model carries and the arm
+  does not) goes into link 6.
 
 K_i is placed in the user's world through the model's base alignment (:mod:`urident.sim.chain`).
 URDF has no armature (the caller lists it as not expressible).
@@ -123,24 +124,24 @@ def _relocate_assets(mjspec, source: Path, out: Path) -> None:
 
 
 def fold_payload(changes: dict, spec) -> dict:
-    """``changes`` with a payload correction's first-moment part, and a negative point mass (the
-    model carries a tool the arm does not), moved into link 6's mass, first moment and inertia
-    about K_6 (exactly the payload columns); a positive point mass stays a payload body."""
+    """``changes`` with the payload correction (a point mass at the tool point plus a first-moment
+    change of link 6, about K_6) in a writable form: a positive mass stays a point mass ``payload``
+    ``(mass, offset (3,))`` whose centre sits ``offset`` (K_6 axes) from the tool point so that it
+    carries the first moment too; a negative one (the model carries a tool the arm does not) goes
+    into link 6's mass, first moment and inertia about K_6, exactly the payload columns."""
     payload = changes.get("payload")
     if payload is None:
         return changes
     mass, first = float(payload[0]), np.asarray(payload[1], float)
     out = {k: (np.array(v, float) if k != "payload" else v) for k, v in changes.items()}
-    out.setdefault("inertia", np.zeros((6, 3, 3)))
-    out["inertia"] = np.array(out["inertia"], float)
-    out["first_moment"][5] += first
+    out["inertia"] = np.array(out.get("inertia", np.zeros((6, 3, 3))), float)
     out["payload"] = None
     if mass > 0:
-        out["payload"] = (mass, np.zeros(3))
-    elif mass < 0:
+        out["payload"] = (mass, first / mass)
+    else:
         tool = np.asarray(spec.tool_xyz, float)
         out["mass"][5] += mass
-        out["first_moment"][5] += mass * tool
+        out["first_moment"][5] += mass * tool + first
         out["inertia"][5] += mass * _shift(tool)
     return out
 
@@ -260,7 +261,7 @@ def _mjcf_text(sim, spec, changes: dict, notes, out: Path | None = None) -> str:
         if old is not None:
             edit.delete(old)
         last.add_body(name="payload", pos=rb.T @ (pos[6] - xb), quat=[1.0, 0, 0, 0], explicitinertial=True,
-                      ipos=np.zeros(3), iquat=[1.0, 0, 0, 0],
+                      ipos=rb.T @ rot[5] @ payload[1], iquat=[1.0, 0, 0, 0],
                       mass=float(payload[0]), inertia=np.full(3, 1e-6 * payload[0]))
     lines = [line.replace("--", "- -") for line in notes]
     if edit.comment:
@@ -340,7 +341,8 @@ def _urdf_text(sim, spec, changes: dict, notes) -> str:
             root.remove(old)
         from urident.ident.payload import Payload
 
-        point = Payload(spec.name, payload[0], np.zeros(3), np.eye(3) * 1e-6 * payload[0])
+        com = np.asarray(spec.tool_rotation, float).T @ payload[1]      # K_6 axes → the tool frame's
+        point = Payload(spec.name, payload[0], com, np.eye(3) * 1e-6 * payload[0])
         text = "<r>" + "".join(payload_link(point, parent=last, indent="")) + "</r>"
         for e in ET.fromstring(text):
             if e.tag == "joint":
