@@ -20,7 +20,7 @@ armature torque is above the noise (the identification-style ``ur5e_valid.yaml``
 wrist to 0.2 rad/s² RMS, where 0.06 kg·m² of rotor inertia is 0.01 N·m).
 
     python benchmarks/sim_gap.py [--robot ur5e] [--trajectory FILE] [--seed 0] [--max-effects N]
-    python benchmarks/sim_gap.py --model menagerie|dh [--holdout FILE]
+    python benchmarks/sim_gap.py --model menagerie|dh [--holdout FILE] [--model-file YOUR.xml]
 """
 
 from __future__ import annotations
@@ -52,7 +52,9 @@ def users_model(kind: str, args) -> None:
     cb3 = load_robot("ur5").nominal_params if spec.name == "ur5e" else spec.nominal_params
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        if kind == "menagerie":
+        if args.model_file is not None:
+            model = args.model_file
+        elif kind == "menagerie":
             model = menagerie_like_mjcf(spec, cb3, tmp / "menagerie", gripper=False, name=f"{spec.name}.xml")
         else:
             model = dh_mjcf(spec, spec.nominal_params, tmp / f"{spec.name}_dh.xml")
@@ -117,6 +119,9 @@ def main() -> None:
     ap.add_argument("--model", choices=("downloaded", "menagerie", "dh"), default="downloaded",
                     help="the simulator model: downloaded-like (urident's export), Menagerie-style or DH-built")
     ap.add_argument("--holdout", type=Path, default=None, help="held-out trajectory (menagerie/dh)")
+    ap.add_argument("--model-file", type=Path, default=None,
+                    help="with --model menagerie/dh: your own file instead of the written one (e.g. Menagerie's "
+                         "universal_robots_ur5e/ur5e.xml)")
     args = ap.parse_args()
     if args.model != "downloaded":
         users_model(args.model, args)

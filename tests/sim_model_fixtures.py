@@ -66,7 +66,7 @@ def _inertial(m, com_w, ic_w, r_body, p_body, digits=12) -> str:
 
 def menagerie_like_mjcf(spec, p: np.ndarray, folder: Path, *, yaw: float = np.pi / 2, round_m: float = 0.001,
                         shift_m=(0.0, 0.03, -0.02, 0.05, 0.01, -0.04), twist=(0.3, -0.5, 1.0, 0.0, 0.7, -1.2),
-                        prefix: str = "", gripper: bool = True, armature: float = 0.1,
+                        prefix: str = "", gripper: bool = True, finger: str = "slide", armature: float = 0.1,
                         damping=(200.0, 200.0, 200.0, 15.0, 15.0, 15.0), name: str = "arm.xml") -> Path:
     """The model in ``folder`` (with ``classes.xml``, included); returns the main file."""
     from urident.model.kinematics import frame_poses
@@ -133,11 +133,11 @@ def menagerie_like_mjcf(spec, p: np.ndarray, folder: Path, *, yaw: float = np.pi
                   f'{indent}    <inertial mass="0.5" pos="0 0.03 0" diaginertia="0.001 0.001 0.001"/>',
                   f'{indent}    <body name="{prefix}finger_left" pos="0 0.06 0.02">',
                   f'{indent}      <inertial mass="0.05" pos="0 0.01 0" diaginertia="1e-5 1e-5 1e-5"/>',
-                  f'{indent}      <joint name="{prefix}finger_left_joint" type="slide" axis="0 0 1" range="0 0.04"/>',
+                  f'{indent}      <joint name="{prefix}finger_left_joint" type="{finger}" axis="0 0 1" range="0 0.04"/>',
                   f"{indent}    </body>",
                   f'{indent}    <body name="{prefix}finger_right" pos="0 0.06 -0.02">',
                   f'{indent}      <inertial mass="0.05" pos="0 0.01 0" diaginertia="1e-5 1e-5 1e-5"/>',
-                  f'{indent}      <joint name="{prefix}finger_right_joint" type="slide" axis="0 0 -1" range="0 0.04"/>',
+                  f'{indent}      <joint name="{prefix}finger_right_joint" type="{finger}" axis="0 0 -1" range="0 0.04"/>',
                   f"{indent}    </body>", f"{indent}  </body>", f"{indent}</body>"]
     for _ in range(6):
         indent = indent[:-2]

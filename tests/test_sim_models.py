@@ -104,6 +104,12 @@ def test_joint_names_among_more_joints_and_an_explicit_map(robots, tmp_path):
     assert sim.joint_names == tuple(names) and list(sim.qpos_adr) == list(range(6))
     with pytest.raises(SimModelError, match="has no hinge joint 'nope'"):
         load_sim_model(path, spec, joint_map={**{str(i): n for i, n in enumerate(names)}, "5": "nope"})
+    # eight hinge joints (hinged fingers): the arm's six found by their names, the fingers held
+    hinged = menagerie_like_mjcf(spec, spec.nominal_params, tmp_path / "h", prefix="ur5e_", finger="hinge", round_m=0)
+    sim = load_sim_model(hinged, spec)
+    assert sim.joint_names == tuple(f"ur5e_{j.name}_joint" for j in spec.joints) and sim.handle.nv == 8
+    q, qd, qdd = _states()
+    np.testing.assert_allclose(sim.predict(q, qd, qdd), load_sim_model(path, spec).predict(q, qd, qdd), atol=1e-6)
     # a map in another order is another chain
     swapped = {str(i): n for i, n in enumerate(names)}
     swapped["1"], swapped["2"] = names[2], names[1]

@@ -58,5 +58,7 @@ def format_model_against_robot(doc: dict, spec, fmt: str) -> list[str]:
             "  damping [N·m·s/rad]              " + row(doc["damping_nm_s_per_rad"], "7.2f"),
             "  frictionloss [N·m]               " + row(doc["frictionloss_nm"], "7.2f")]
     if doc["missing_meshes"]:
-        out.append(f"  mesh files not found (checked without them): {', '.join(doc['missing_meshes'])}")
+        missing = doc["missing_meshes"]
+        out.append(f"  mesh files not found (checked without them): {', '.join(missing[:3])}"
+                   + (f" … ({len(missing)} files)" if len(missing) > 3 else ""))
     return out
