@@ -90,8 +90,17 @@ def test_rounded_link_lengths_are_findings_with_their_torque(robots, tmp_path, r
     doc = model_against_robot(sim, spec, q, qd, qdd)
     assert max(doc["geometry_torque_rms_nm"]) > 1e-4
     text = "\n".join(format_model_against_robot(doc, spec, "mjcf"))
+    # written back with drive corrections: MuJoCo loads it, the chain and the offsets are the same
+    from urident.sim.correct import write_corrected
+
+    changes = {k: np.zeros(6) for k in ("armature", "mass")}
+    changes.update(damping=np.full(6, -10.0), frictionloss=np.full(6, 2.0), first_moment=np.zeros((6, 3)),
+                   inertia=np.zeros((6, 3, 3)), payload=None)
+    new = load_sim_model(write_corrected(sim, spec, changes, tmp_path / "w.xml"), spec)
+    np.testing.assert_allclose(new.alignment.offset_m, off, atol=2e-6)
+    np.testing.assert_allclose(new.drive()["damping"], [190, 190, 190, 5, 5, 5], rtol=1e-5)
     yaw = float(re.search(r"turned (-?[\d.]+)° about the vertical", text).group(1))
-    assert abs(yaw + 90) < 0.2 and "axis line offset [mm]" in text and "link6.obj" in text
+    assert abs(yaw + 90) < 0.2 and "axis line offset [mm]" in text and "link2.obj … (7 files)" in text
 
 
 def test_joint_names_among_more_joints_and_an_explicit_map(robots, tmp_path):
