@@ -57,6 +57,9 @@ def format_model_against_robot(doc: dict, spec, fmt: str) -> list[str]:
             + ("" if fmt == "mjcf" else "   (URDF has none)"),
             "  damping [N·m·s/rad]              " + row(doc["damping_nm_s_per_rad"], "7.2f"),
             "  frictionloss [N·m]               " + row(doc["frictionloss_nm"], "7.2f")]
+    out.append("  " + ("MJCF holds each of these: <inertial> mass, pos, inertia; joint armature, damping, "
+                       "frictionloss (Coulomb friction as a clipped line, urident writes it tanh-like)"
+                       if fmt == "mjcf" else "URDF holds <inertial> and <dynamics damping friction>; no armature"))
     if doc["missing_meshes"]:
         missing = doc["missing_meshes"]
         out.append(f"  mesh files not found (checked without them): {', '.join(missing[:3])}"
