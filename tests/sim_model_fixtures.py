@@ -193,7 +193,7 @@ def _rpy(r: np.ndarray) -> np.ndarray:
     return Rotation.from_matrix(r).as_euler("xyz")     # URDF's fixed-axis roll, pitch, yaw
 
 
-def ros_like_urdf(spec, p: np.ndarray, path: Path, prefix: str = "") -> Path:
+def ros_like_urdf(spec, p: np.ndarray, path: Path, prefix: str = "", fingers: bool = False) -> Path:
     """UR's ROS description layout: base_link → base_link_inertia (turned by π) → DH-frame links,
     wrist_3_link → flange → tool0; zero <dynamics>."""
     frames = dh_frames(spec)
@@ -226,6 +226,16 @@ def ros_like_urdf(spec, p: np.ndarray, path: Path, prefix: str = "") -> Path:
             f'  <joint name="{prefix}wrist_3-flange" type="fixed"><parent link="{parent}"/><child link="{prefix}flange"/>'
             f'<origin xyz="0 0 {spec.dh["d"][5]:.12g}" rpy="0 {-np.pi / 2:.12g} {-np.pi / 2:.12g}"/></joint>',
             f'  <joint name="{prefix}flange-tool0" type="fixed"><parent link="{prefix}flange"/><child link="{prefix}tool0"/>'
-            f'<origin xyz="0 0 0" rpy="{np.pi / 2:.12g} 0 {np.pi / 2:.12g}"/></joint>', "</robot>", ""]
+            f'<origin xyz="0 0 0" rpy="{np.pi / 2:.12g} 0 {np.pi / 2:.12g}"/></joint>']
+    if fingers:      # a two-finger gripper on tool0: a revolute finger and a mimic one
+        for k, side in enumerate(("left", "right")):
+            mimic = f'<mimic joint="{prefix}finger_left_joint"/>' if k else ""
+            out += [f'  <link name="{prefix}finger_{side}"><inertial><origin xyz="0 0 0.02" rpy="0 0 0"/>'
+                    f'<mass value="0.05"/><inertia ixx="1e-5" ixy="0" ixz="0" iyy="1e-5" iyz="0" izz="1e-5"/>'
+                    f'</inertial></link>',
+                    f'  <joint name="{prefix}finger_{side}_joint" type="revolute"><parent link="{prefix}tool0"/>'
+                    f'<child link="{prefix}finger_{side}"/><origin xyz="0 {0.02 - 0.04 * k} 0.05" rpy="0 0 0"/>'
+                    f'<axis xyz="1 0 0"/><limit lower="0" upper="0.8" effort="10" velocity="1"/>{mimic}</joint>']
+    out += ["</robot>", ""]
     path.write_text("\n".join(out))
     return path

@@ -119,6 +119,11 @@ def test_joint_names_among_more_joints_and_an_explicit_map(robots, tmp_path):
     assert sim.joint_names == tuple(f"ur5e_{j.name}_joint" for j in spec.joints) and sim.handle.nv == 8
     q, qd, qdd = _states()
     np.testing.assert_allclose(sim.predict(q, qd, qdd), load_sim_model(path, spec).predict(q, qd, qdd), atol=1e-6)
+    # a ROS description with a gripper (a revolute and a mimic finger): the fingers held
+    urdf = load_sim_model(ros_like_urdf(spec, spec.nominal_params, tmp_path / "g.urdf", prefix="ur_", fingers=True), spec)
+    assert urdf.joint_names == tuple(f"ur_{n}_joint" for n in ("shoulder_pan", "shoulder_lift", "elbow", "wrist_1",
+                                                                "wrist_2", "wrist_3"))
+    assert urdf.handle[0].nq == 6 and abs(urdf.link_params(spec)[5, 0] - spec.nominal_params[50] - 0.1) < 1e-9
     # a map in another order is another chain
     swapped = {str(i): n for i, n in enumerate(names)}
     swapped["1"], swapped["2"] = names[2], names[1]

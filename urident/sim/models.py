@@ -4,7 +4,8 @@ file's kinematic chain, and asked for its inverse dynamics.
 * MJCF: MuJoCo compiles it (``mujoco.MjSpec``: includes, default classes, childclass, angle units,
   frames in any orientation form); ``mj_inverse`` gives the torques (contacts off; armature, damping
   and frictionloss as MuJoCo has them). Mesh files that are not there do not stop it unless a
-  body's mass comes from one. Joints other than the arm's six (a gripper's) are held at ``qpos0``.
+  body's mass comes from one. Joints other than the arm's six (a gripper's) are held at ``qpos0``
+  (URDF: Pinocchio's reduced model, the others locked at the neutral configuration).
 * URDF: Pinocchio's RNEA plus ``<dynamics damping friction>`` as damping·q̇ + friction·tanh(q̇/ε)
   (URDF does not say how its Coulomb friction is smoothed; urident's ε).
 
@@ -246,43 +247,49 @@ def _load_urdf(path: Path, spec, friction_eps: float, joint_map=None) -> SimMode
         raise SimModelError(f"{path}: cannot read: {exc.strerror or exc}") from None
     if root.tag != "robot":
         raise SimModelError(f"{path}: <{root.tag}>: a URDF's root element is <robot>")
-    moving, damping, friction, local_axes = [], [], [], []
+    rows = {}        # every moving joint: name → (type, mimic, damping, friction, local axis)
     for joint in root.iter("joint"):
         name, kind = joint.get("name", "?"), joint.get("type", "?")
-        if joint.find("mimic") is not None:
-            raise SimModelError(f"{path}: <joint name={name!r}> has a <mimic> element: urident cannot map "
-                                f"a coupled joint")
         if kind == "fixed":
             continue
-        if kind != "revolute":
-            raise SimModelError(f"{path}: <joint name={name!r} type={kind!r}>: urident maps only revolute "
-                                f"joints with limits" + (" (a continuous joint has no limits and two "
-                                                         "configuration coordinates)" if kind == "continuous" else ""))
         dyn = joint.find("dynamics")
         try:
-            damping.append(float(dyn.get("damping", 0)) if dyn is not None else 0.0)
-            friction.append(float(dyn.get("friction", 0)) if dyn is not None else 0.0)
             axis = joint.find("axis")
-            local_axes.append(np.array([float(v) for v in (axis.get("xyz", "1 0 0") if axis is not None
-                                                           else "1 0 0").split()]))
+            rows[name] = (kind, joint.find("mimic") is not None,
+                          float(dyn.get("damping", 0)) if dyn is not None else 0.0,
+                          float(dyn.get("friction", 0)) if dyn is not None else 0.0,
+                          np.array([float(v) for v in (axis.get("xyz", "1 0 0") if axis is not None
+                                                        else "1 0 0").split()]))
         except ValueError:
             raise SimModelError(f"{path}: <joint name={name!r}>: <dynamics> or <axis> is not numeric") from None
-        moving.append(name)
-    if len(moving) != len(spec.joints):
-        raise SimModelError(f"{path}: {len(moving)} revolute joints, {spec.name} has {len(spec.joints)}")
-    if joint_map and _arm_joints(path, spec, moving, joint_map, "revolute") != list(range(6)):
-        raise SimModelError(f"--joint-map: {path}'s joints {moving} are one chain in that order; the map "
-                            "orders them otherwise")
+    revolute = [n for n, r in rows.items() if r[0] == "revolute" and not r[1]]
+    if len(revolute) < len(spec.joints):
+        for name, (kind, mimic, *_) in rows.items():
+            if mimic:
+                raise SimModelError(f"{path}: <joint name={name!r}> has a <mimic> element: urident cannot map "
+                                    f"a coupled joint")
+            if kind != "revolute":
+                raise SimModelError(f"{path}: <joint name={name!r} type={kind!r}>: urident maps only revolute "
+                                    f"joints with limits" + (" (a continuous joint has no limits and two "
+                                                             "configuration coordinates)" if kind == "continuous" else ""))
+        raise SimModelError(f"{path}: {len(revolute)} revolute joints, {spec.name} has {len(spec.joints)}")
+    moving = [revolute[k] for k in _arm_joints(path, spec, revolute, joint_map, "revolute")]
+    damping = [rows[n][2] for n in moving]
+    friction = [rows[n][3] for n in moving]
+    local_axes = [rows[n][4] for n in moving]
     import pinocchio as pin
 
     try:
-        model = pin.buildModelFromUrdf(str(path))
+        full = pin.buildModelFromUrdf(str(path))
+        # the joints that are not the arm's (a gripper's) held at the neutral configuration
+        locked = [full.getJointId(n) for n in full.names[1:] if n not in moving]
+        model = pin.buildReducedModel(full, locked, pin.neutral(full)) if locked else full
     except (RuntimeError, ValueError) as exc:
         raise SimModelError(f"{path}: Pinocchio cannot load it: {' '.join(str(exc).split())}") from None
     names = tuple(model.names[1:])
     if list(names) != moving or model.nq != 6:
-        raise SimModelError(f"{path}: the joints do not form one chain of {len(spec.joints)} revolute joints "
-                            f"(Pinocchio sees {list(names)})")
+        raise SimModelError(f"{path}: the joints {moving} do not form one chain of {len(spec.joints)} revolute "
+                            f"joints in that order (Pinocchio sees {list(names)})")
     data = model.createData()
     anchors, axes = [], []
     for q in check_poses(spec):
