@@ -113,6 +113,8 @@ def test_joint_names_among_more_joints_and_an_explicit_map(robots, tmp_path):
     assert sim.joint_names == tuple(names) and list(sim.qpos_adr) == list(range(6))
     with pytest.raises(SimModelError, match="has no hinge joint 'nope'"):
         load_sim_model(path, spec, joint_map={**{str(i): n for i, n in enumerate(names)}, "5": "nope"})
+    with pytest.raises(SimModelError, match="'foo' is not a joint of ur5e"):
+        load_sim_model(path, spec, joint_map={"foo": names[0]})
     # eight hinge joints (hinged fingers): the arm's six found by their names, the fingers held
     hinged = menagerie_like_mjcf(spec, spec.nominal_params, tmp_path / "h", prefix="ur5e_", finger="hinge", round_m=0)
     sim = load_sim_model(hinged, spec)

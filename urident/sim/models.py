@@ -167,6 +167,10 @@ def _arm_joints(path, spec, names: list[str], joint_map: dict | None, what: str)
     """Indices into ``names`` of the robot's six joints, in the robot's order."""
     robot = spec.joint_names
     if joint_map:
+        unknown = [k for k in joint_map if k not in robot and not (k.isdigit() and int(k) < len(robot))
+                   and k.removesuffix("_joint") not in robot]
+        if unknown:
+            raise SimModelError(f"--joint-map: {unknown[0]!r} is not a joint of {spec.name} ({', '.join(robot)})")
         out = []
         for i, rj in enumerate(robot):
             user = joint_map.get(rj, joint_map.get(str(i), joint_map.get(f"{rj}_joint")))
@@ -176,9 +180,6 @@ def _arm_joints(path, spec, names: list[str], joint_map: dict | None, what: str)
             if user not in names:
                 raise SimModelError(f"--joint-map: {path} has no {what} joint {user!r} (it has: {', '.join(names)})")
             out.append(names.index(user))
-        unknown = [k for k in joint_map if k not in robot and not k.isdigit() and k.removesuffix("_joint") not in robot]
-        if unknown:
-            raise SimModelError(f"--joint-map: {unknown[0]!r} is not a joint of {spec.name} ({', '.join(robot)})")
         return out
     if len(names) == len(robot):
         return list(range(len(robot)))
