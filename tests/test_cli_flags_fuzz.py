@@ -128,6 +128,8 @@ def _bad_values(action: argparse.Action) -> st.SearchStrategy[str]:
         return st.one_of(always, st.sampled_from(["4.1", "5", "6.0.0", "5.-1", "5.1.2.3.4"]))
     if kind == "_parse_fault":
         return st.one_of(always, st.sampled_from(["boom@1", "drop@x", "drop@-1", "stale@1:-2"]))
+    if kind == "joint_map":
+        return st.one_of(always, st.sampled_from(["a,b,c,d,e,f,g", "a=b,a=c", "a=b,c=b", "=x", "a=", "a,b,c,d,e,e"]))
     if kind == "tf_prefix":
         return st.one_of(always, st.sampled_from(["ur", "_ur_", "1_", "u r_"]))
     if kind == "ros_topic":

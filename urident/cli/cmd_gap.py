@@ -35,6 +35,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="baseline: your simulator model as it is (MJCF through MuJoCo's inverse dynamics, "
                         "URDF through Pinocchio and its <dynamics>); candidates add armature, damping, "
                         "frictionloss, per-link mass/CoM, payload and drive-gain corrections")
+    p.add_argument("--joint-map", metavar="ROBOT=MODEL,...", type=options.joint_map, default=None,
+                   help="with --sim: the model's joint for each of the robot's (shoulder_pan=joint1,...), or the "
+                        "model's six joint names in the robot's order (default: its six hinge joints, or those "
+                        "named like the robot's)")
     p.add_argument("--write-sim", metavar="OUT.xml|OUT.urdf", default=None,
                    help="with --sim: write the model with every finding its format can express")
     p.add_argument("--json-out", metavar="FILE", default=None, help="write the full report as JSON")
@@ -120,7 +124,7 @@ def run(args: argparse.Namespace) -> int:
 
         raise ConfigError("--check is not available with --sim (the held-out check tests the paper "
                           "baseline's findings); leave one out")
-    if args.sim or args.write_sim:
+    if args.sim or args.write_sim or args.joint_map:
         from urident.cli.gap_sim import run_sim
 
         return run_sim(args, _load_all, _json_default)

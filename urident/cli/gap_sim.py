@@ -22,13 +22,13 @@ def run_sim(args: argparse.Namespace, load_all, json_default) -> int:
     from urident.gap import GapConfig, format_report
     from urident.gap.candidates import EFFECTS
     from urident.gap.results import e_n, rms
-    from urident.gap.sim_baseline import (LINK_EFFECTS, corrections, detection_limits, diagnose_sim,
-                                          expressible, expressible_fit, link_inertia_columns)
+    from urident.gap.sim_baseline import (corrections, detection_limits, diagnose_sim, expressible,
+                                          expressible_fit, link_inertia_columns, unwritable)
     from urident.model import load_robot
     from urident.sim.models import load_sim_model, model_format
 
     if not args.sim:
-        raise ConfigError("--write-sim needs --sim MODEL (the model to correct)")
+        raise ConfigError(("--write-sim" if args.write_sim else "--joint-map") + " needs --sim MODEL")
     if args.params:
         raise ConfigError("--params and --sim are two baselines: give one")
     fmt = model_format(args.sim)
@@ -37,7 +37,8 @@ def run_sim(args: argparse.Namespace, load_all, json_default) -> int:
             raise ConfigError(f"--write-sim {args.write_sim}: must be {fmt.upper()} like --sim {args.sim}")
         options.output_path("--write-sim", args.write_sim, args.overwrite)
     spec = load_robot(args.robot)
-    sim = load_sim_model(args.sim, spec)
+    joint_map = args.joint_map
+    sim = load_sim_model(args.sim, spec, joint_map=joint_map)
     floor = {} if args.min_shrink_pct is None else {"min_shrink_pct": args.min_shrink_pct}
     config = GapConfig(effects=args.effects or EFFECTS, **floor, cv_min_noise_ratio=args.cv_min_noise_ratio,
                        max_effects=args.max_effects or SIM_MAX_EFFECTS, seed=args.seed)
@@ -50,6 +51,12 @@ def run_sim(args: argparse.Namespace, load_all, json_default) -> int:
         print("note: --ident logs are not used with --sim (the simulator model is the baseline, not refitted)")
     result = diagnose_sim(valid, spec, sim, drive_gains=drive_gains, config=config)
     print(format_report(result))
+    print("")
+    from urident.sim.compare import format_model_against_robot, model_against_robot
+
+    states = result.valid.data.prepared
+    against = model_against_robot(sim, spec, states.q, states.qd, states.qdd)
+    print("\n".join(format_model_against_robot(against, spec, fmt)))
     print("")
     print(f"Simulator model {args.sim} ({fmt.upper()}): which findings the format can express")
     final_fit = {(c.effect, c.joint): c.magnitude(beta, spec) for c, beta in result.fit.coefficients().items()}
@@ -82,17 +89,18 @@ def run_sim(args: argparse.Namespace, load_all, json_default) -> int:
         if f.effect == "armature":
             # link inertia fields the armature value also holds (inseparable from it)
             fd["inseparable_link_inertia"] = list(link_inertia_columns(spec, result.valid, f.joint - 1)[1])
-    doc["baseline"]["sim_model"] = {"path": str(args.sim), "format": fmt}
+    doc["baseline"]["sim_model"] = {"path": str(args.sim), "format": fmt, "joints": list(sim.joint_names),
+                                    "against_robot_file": against}
     r0 = result.valid.residual
     chosen, fit = expressible_fit(result)
     from urident.sim.correct import unrealisable_links
 
-    bad = set(unrealisable_links(sim, spec, corrections(result)))
-    for c in chosen:
-        if c.effect in LINK_EFFECTS and c.joint in bad:
-            print(f"  {c.name}: not a real mass distribution (the inertia about the new centre of mass "
-                  "would not be positive): not written")
-    written = [c for c in chosen if not (c.effect in LINK_EFFECTS and c.joint in bad)]
+    all_changes = corrections(result)
+    bad = unwritable(chosen, set(unrealisable_links(sim, spec, all_changes)), all_changes)
+    for c in bad:
+        print(f"  {c.name}: not a real mass distribution (the inertia about the new centre of mass "
+              "would not be positive): not written")
+    written = [c for c in chosen if c not in bad]
     if len(written) != len(chosen):
         fit = result.correction(written)
     predicted = r0 - fit.change(result.valid) if written else r0
@@ -121,12 +129,22 @@ def run_sim(args: argparse.Namespace, load_all, json_default) -> int:
         notes = [f"corrected by urident gap from {args.sim} on {', '.join(map(str, args.valid))}"]
         notes += [f"not expressible here: {c.name}" for c in inexpressible]
         path = write_corrected(sim, spec, changes, args.write_sim, notes=notes, overwrite=args.overwrite)
-        corrected = load_sim_model(path, spec)
+        corrected = load_sim_model(path, spec, joint_map=joint_map)
         p = result.valid.data.prepared
         r1 = p.tau - corrected.predict(p.q, p.qd, p.qdd)
         doc["sim_corrected"] = {"e_n": float(e_n(r1)), "rms_nm": [float(v) for v in rms(r1)], "path": str(path)}
         print("    written model, measured by " + ("MuJoCo" if fmt == "mjcf" else "Pinocchio") + "    "
               + " ".join(f"{v:6.1f}" for v in shrink(rms(r0), rms(r1))))
+        before, after = sim.drive(), corrected.drive()
+        masses = model_against_robot(corrected, spec)["link_mass_kg"]
+        doc["sim_corrected"]["values"] = {**{k: after[k].tolist() for k in after}, "link_mass_kg": masses}
+        print("  written values (model → written), joints 1-6:")
+        for key, unit in (("armature", "kg·m²"), ("damping", "N·m·s/rad"), ("frictionloss", "N·m")):
+            if fmt == "mjcf" or key != "armature":
+                print(f"    {key + ' [' + unit + ']':28s} " + "  ".join(
+                    f"{a:.4g}→{b:.4g}" for a, b in zip(before[key], after[key])))
+        print(f"    {'link mass [kg]':28s} " + "  ".join(
+            f"{a:.4g}→{b:.4g}" for a, b in zip(against["link_mass_kg"], masses)))
         print(f"wrote {path}")
     if args.json_out:
         from urident.fileio import write_text_atomic

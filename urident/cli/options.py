@@ -187,6 +187,28 @@ def tf_prefix(text: str) -> str:
     return text
 
 
+def joint_map(text: str) -> dict[str, str]:
+    """``ROBOT=MODEL,...`` (the robot file's joint names to a model's) or six model joint names in
+    the robot's joint order (keys "0" … "5")."""
+    items = [s.strip() for s in text.split(",") if s.strip()]
+    if not items:
+        raise _fail("six joint names, or ROBOT=MODEL pairs", text)
+    if all("=" not in s for s in items):
+        if len(items) != N_JOINTS:
+            raise _fail(f"{N_JOINTS} joint names in the robot's order (got {len(items)}), or ROBOT=MODEL pairs", text)
+        out = {str(i): s for i, s in enumerate(items)}
+    else:
+        out = {}
+        for s in items:
+            key, sep, value = s.partition("=")
+            if not sep or not key.strip() or not value.strip() or key.strip() in out:
+                raise _fail("ROBOT=MODEL pairs, each robot joint once", text)
+            out[key.strip()] = value.strip()
+    if len(set(out.values())) != len(out):
+        raise _fail("pairs naming each model joint once", text)
+    return out
+
+
 def checked(parse: Callable[[str], Any]) -> Callable[[str], str]:
     """A validator from a library parser (raising ValueError/ConfigError): the text is checked at
     parse time and kept as given."""

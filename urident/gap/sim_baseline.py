@@ -288,10 +288,22 @@ def unrealisable_chosen(result, sim, spec) -> list[Candidate]:
     from urident.sim.correct import unrealisable_links
 
     chosen = result.chosen()
-    links = set(unrealisable_links(sim, spec, corrections(result)))
+    changes = corrections(result)
+    links = set(unrealisable_links(sim, spec, changes))
+    bad = unwritable(chosen, links, changes)
     if result.model.fmt in EXPRESSIBLE:
-        links |= set(unrealisable_links(sim, spec, corrections(result, expressible_fit(result)[0])))
-    return [c for c in chosen if c.effect in LINK_EFFECTS and c.joint in links]
+        changes = corrections(result, expressible_fit(result)[0])
+        bad += [c for c in unwritable(chosen, set(unrealisable_links(sim, spec, changes)), changes) if c not in bad]
+    return bad
+
+
+def unwritable(candidates, links, changes) -> list[Candidate]:
+    """The candidates behind the unrealisable ``links`` (0-based) of ``changes``: a link's own
+    corrections, and a negative payload (written into link 6)."""
+    payload = changes.get("payload")
+    negative = payload is not None and payload[0] <= 0
+    return [c for c in candidates if (c.effect in LINK_EFFECTS and c.joint in links)
+            or (c.effect == "payload_error" and negative and 5 in links)]
 
 
 def corrections(result, candidates=None) -> dict:

@@ -70,29 +70,158 @@ def hinge_joints(model) -> list[str]:
 
 
 def inverse_dynamics(model, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, *,
-                     frictionloss: bool = True) -> np.ndarray:
-    """(N, 6) joint torques of ``model`` (an MjModel, an MJCF path) at the states (N, 6)."""
+                     frictionloss: bool = True, qpos_adr=None, dof_adr=None) -> np.ndarray:
+    """(N, 6) joint torques of ``model`` (an MjModel, an MJCF path) at the states (N, 6); with
+    ``qpos_adr``/``dof_adr`` (6,) the arm's joints among more (the others held at ``qpos0``, still)."""
     mujoco = import_mujoco()
     if not hasattr(model, "nv"):
         model = load_model(model)
-    if model.nv != q.shape[1] or model.nq != q.shape[1]:
-        raise MujocoModelError(f"the MuJoCo model has {model.nv} degrees of freedom, the log {q.shape[1]}")
+    if qpos_adr is None:
+        if model.nv != q.shape[1] or model.nq != q.shape[1]:
+            raise MujocoModelError(f"the MuJoCo model has {model.nv} degrees of freedom, the log {q.shape[1]}")
+        qpos_adr = dof_adr = np.arange(q.shape[1])
+    qpos_adr, dof_adr = np.asarray(qpos_adr), np.asarray(dof_adr)
     flags = model.opt.disableflags
     model.opt.disableflags = flags | int(mujoco.mjtDisableBit.mjDSBL_CONTACT) | (
         0 if frictionloss else int(mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS))
     try:
         with _warnings_kept(mujoco) as said:
             data = mujoco.MjData(model)
+            data.qpos[:] = model.qpos0
             out = np.empty_like(np.asarray(q, dtype=float))
             for k in range(q.shape[0]):
-                data.qpos[:] = q[k]
-                data.qvel[:] = qd[k]
-                data.qacc[:] = qdd[k]
+                data.qpos[qpos_adr] = q[k]
+                data.qvel[dof_adr] = qd[k]
+                data.qacc[dof_adr] = qdd[k]
                 mujoco.mj_inverse(model, data)
-                out[k] = data.qfrc_inverse
+                out[k] = data.qfrc_inverse[dof_adr]
         if said or not np.all(np.isfinite(out)):
             raise MujocoModelError("MuJoCo's inverse dynamics of the model "
                                    + (f"warns: {said[0]}" if said else "is not finite at every state"))
         return out
     finally:
         model.opt.disableflags = flags
+
+
+#: a stand-in for a mesh file that is not there (a tetrahedron of 1 cm): the kinematics and the
+#: explicit inertials do not need the visual meshes a user removed
+_PLACEHOLDER_OBJ = b"v 0 0 0\nv 0.01 0 0\nv 0 0.01 0\nv 0 0 0.01\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+
+
+def _missing_meshes(spec, path: Path) -> list[str]:
+    """The mesh files the model names that are not on disk (relative to its meshdir)."""
+    base = path.parent / (spec.meshdir or "")
+    return [m.file for m in spec.meshes if m.file and not (base / m.file).is_file() and not Path(m.file).is_file()]
+
+
+def load_spec(path: str | Path):
+    """(``mujoco.MjSpec``, compiled ``MjModel``, missing mesh files) of the MJCF at ``path``: MuJoCo
+    resolves its includes, default classes, childclasses and angle units. Mesh files that are not
+    there are compiled as a small placeholder (named in the third item) unless a body's inertia
+    comes from such a mesh; MujocoModelError naming the file otherwise."""
+    mujoco = import_mujoco()
+    path = Path(path)
+    try:
+        spec = mujoco.MjSpec.from_file(str(path))
+    except ValueError as exc:
+        raise MujocoModelError(f"{path}: MuJoCo cannot load it: {' '.join(str(exc).split())}") from None
+    missing = _missing_meshes(spec, path)
+    if missing:
+        if any(not f.lower().endswith(".obj") for f in missing):
+            other = next(f for f in missing if not f.lower().endswith(".obj"))
+            raise MujocoModelError(f"{path}: mesh file {other!r} not found (meshdir {spec.meshdir!r})")
+        spec.assets = {**spec.assets, **{f: _PLACEHOLDER_OBJ for f in missing}}
+        names = {m.name or Path(m.file).stem for m in spec.meshes if m.file in missing}
+        geom_inertia = spec.compiler.inertiafromgeom == mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_TRUE
+        for g in spec.geoms:
+            if g.type == mujoco.mjtGeom.mjGEOM_MESH and g.meshname in names:
+                body = g.parent
+                if geom_inertia or not body.explicitinertial:
+                    raise MujocoModelError(f"{path}: body {body.name!r} takes its mass from mesh {g.meshname!r}, "
+                                           f"whose file is not found (meshdir {spec.meshdir!r})")
+    try:
+        model = spec.compile()
+    except ValueError as exc:
+        raise MujocoModelError(f"{path}: MuJoCo cannot load it: {' '.join(str(exc).split())}") from None
+    return spec, model, missing
+
+
+def joint_table(model) -> list[tuple[str, str, int, int, int]]:
+    """(name, type, qpos address, dof address, body id) of every joint, in tree order."""
+    mujoco = import_mujoco()
+    return [(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or f"#{j}",
+             mujoco.mjtJoint(model.jnt_type[j]).name.replace("mjJNT_", "").lower(),
+             int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j]), int(model.jnt_bodyid[j]))
+            for j in range(model.njnt)]
+
+
+def joint_lines(model, joint_ids, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """World anchors and axes (N, 6, 3) of ``joint_ids`` at the arm poses ``q`` (N, 6) (the other
+    joints at ``qpos0``)."""
+    mujoco = import_mujoco()
+    data = mujoco.MjData(model)
+    data.qpos[:] = model.qpos0
+    adr = model.jnt_qposadr[list(joint_ids)]
+    anchors, axes = [], []
+    for qk in np.atleast_2d(q):
+        data.qpos[adr] = qk
+        mujoco.mj_kinematics(model, data)
+        anchors.append(np.array(data.xanchor[list(joint_ids)]))
+        axes.append(np.array(data.xaxis[list(joint_ids)]))
+    return np.array(anchors), np.array(axes)
+
+
+def body_poses(model, joint_ids, q: np.ndarray) -> dict:
+    """At the arm pose ``q`` (6,): per body its frame (``xpos`` (nbody, 3), ``xmat`` (nbody, 3, 3)),
+    centre of mass ``xipos``, inertia about it in world axes ``inertia`` (nbody, 3, 3), ``mass`` and
+    ``arm_joint``: the 0-based arm joint that moves it (the nearest one at or above it), −1 for the
+    base."""
+    mujoco = import_mujoco()
+    data = mujoco.MjData(model)
+    data.qpos[:] = model.qpos0
+    data.qpos[model.jnt_qposadr[list(joint_ids)]] = q
+    mujoco.mj_kinematics(model, data)
+    joint_body = {int(model.jnt_bodyid[j]): i for i, j in enumerate(joint_ids)}
+    arm = np.full(model.nbody, -1)
+    for b in range(1, model.nbody):        # parents come before children
+        arm[b] = joint_body.get(b, arm[model.body_parentid[b]])
+    ximat = np.array(data.ximat).reshape(-1, 3, 3)
+    inertia = np.einsum("bij,bj,bkj->bik", ximat, np.array(model.body_inertia), ximat)
+    return {"xpos": np.array(data.xpos), "xmat": np.array(data.xmat).reshape(-1, 3, 3),
+            "xipos": np.array(data.xipos), "inertia": inertia, "mass": np.array(model.body_mass),
+            "arm_joint": arm}
+
+
+def spec_to_xml(spec) -> str:
+    """The MJCF text of ``spec`` (compiled first, as MuJoCo's writer needs). MuJoCo writes
+    ``angle="radian"`` with the elements' compiled values but the default classes' joint angles as
+    given: with ``angle="degree"`` those are turned into radians here (``spec`` is changed)."""
+    import xml.etree.ElementTree as ET
+
+    mujoco = import_mujoco()
+    try:
+        spec.compile()
+        text = spec.to_xml()
+        if spec.compiler.degree:
+            names = {d.get("class") for d in ET.fromstring(text).iter("default")} - {None} | {"main"}
+            for name in names:
+                joint = spec.find_default(name).joint
+                if joint.type in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_BALL):
+                    joint.range = np.deg2rad(joint.range)
+                    joint.ref, joint.springref = np.deg2rad(joint.ref), np.deg2rad(joint.springref)
+            spec.compile()
+            text = spec.to_xml()
+        return text
+    except ValueError as exc:
+        raise MujocoModelError(f"MuJoCo cannot write the corrected model: {' '.join(str(exc).split())}") from None
+
+
+def tendon_frictionloss(model, names) -> np.ndarray:
+    """The frictionloss of the tendon of each name (0 where there is none)."""
+    mujoco = import_mujoco()
+    out = np.zeros(len(names))
+    for k, name in enumerate(names):
+        t = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, name)
+        if t >= 0:
+            out[k] = model.tendon_frictionloss[t]
+    return out
