@@ -6,6 +6,7 @@ import sys
 import textwrap
 
 import numpy as np
+import pytest
 
 from urident.logs import load_log
 from urident.simcontroller.process import SimControllerProcess
@@ -35,3 +36,71 @@ def test_ur_rtde_file_recording_loads(tmp_path):
     assert np.all(np.diff(rec.t) > 0)                      # de-duplicated on timestamp
     assert rec.q.shape == (len(rec.t), 6) and rec.target_q is not None
     assert np.all(np.isfinite(rec.current))
+
+
+def test_repeated_rows_dropped_single_skips_bridged_real_losses_kept(tmp_path):
+    """ur_rtde's recorder samples the latest state on its own clock: rows repeat (dropped, counted)
+    and single controller samples go missing (bridged by their neighbours' mean, counted); a
+    longer loss stays a gap."""
+    from urident.logs.gaps import recording_gaps
+
+    t = np.arange(400) * 0.002 + 1.0
+    q = np.column_stack([np.sin(t + j) for j in range(6)])
+    rows = list(range(400))
+    del rows[300:303]          # a real loss: 3 periods
+    del rows[200]              # single skips, neighbours on time
+    del rows[100]
+    rows.insert(50, 50)        # a repeated row
+    names = ["timestamp"] + [f"actual_q_{j}" for j in range(6)] + [f"actual_qd_{j}" for j in range(6)] \
+        + [f"actual_current_{j}" for j in range(6)] + ["robot_mode"]
+    path = tmp_path / "rec.csv"
+    with open(path, "w") as f:
+        f.write(",".join(names) + "\n")
+        for k in rows:
+            f.write(",".join([f"{t[k]:.6f}"] + [f"{v:.9g}" for v in q[k]] + [f"{v:.9g}" for v in q[k]]
+                             + [f"{v:.9g}" for v in q[k]] + ["7"]) + "\n")
+    rec = load_log(path, robot="ur5e")
+    assert rec.metadata["duplicates_removed"] == 1 and rec.metadata["bridged"] == 2
+    assert any("2 single missing period(s) bridged" in n for n in rec.metadata["notes"])
+    k = np.searchsorted(rec.t, t[100])
+    assert rec.t[k] == pytest.approx(t[100]) and np.allclose(rec.q[k], q[100], atol=1e-5)
+    assert rec.robot_mode[k] == 7
+    gaps = recording_gaps(rec)
+    assert len(gaps) == 1 and gaps[0].missing == 3
+
+
+RECORD_RUN = textwrap.dedent("""
+    import sys, time
+    import rtde_receive
+    host, path, seconds = sys.argv[1], sys.argv[2], float(sys.argv[3])
+    r = rtde_receive.RTDEReceiveInterface(host, 500.0)
+    r.startFileRecording(path, ["timestamp", "actual_q", "actual_qd", "actual_current"])
+    time.sleep(seconds)
+    r.stopFileRecording()
+    r.disconnect()
+""")
+
+
+def test_ur_rtde_recording_of_a_run_identifies_without_allow_gaps(tmp_path, capsys):
+    pytest.importorskip("rtde_control")
+    from test_session_family import small_trajectory
+    from test_session_sim import NEAR_START, RELAXED, run_cli
+
+    from urident.cli.main import main
+
+    host = "127.0.0.138"
+    config = tmp_path / "relaxed.yaml"
+    config.write_text(RELAXED)
+    path = tmp_path / "ur_rtde_run.csv"
+    with SimControllerProcess(host=host, robot="ur5e", initial_q=NEAR_START):
+        recorder = subprocess.Popen([sys.executable, "-c", RECORD_RUN, host, str(path), "9"])
+        try:
+            r = run_cli(host, "ur5e", small_trajectory(tmp_path / "t.yaml", "ur5e"),
+                        tmp_path / "own.csv", config, "--yes")
+        finally:
+            recorder.wait(timeout=60)
+    assert r.returncode == 0, r.stderr
+    rec = load_log(path, robot="ur5e")
+    assert np.max(np.abs(rec.qd)) > 0.05                   # it saw the motion
+    assert main(["identify", str(path), "--robot", "ur5e", "--out", str(tmp_path / "p.yaml")]) == 0
+    capsys.readouterr()
