@@ -136,6 +136,21 @@ def find_gaps(t: np.ndarray, period_s: float | None) -> list[Gap]:
     return gaps
 
 
+#: UR controller periods [s]: e-Series 500 Hz, CB3 125 Hz.
+CONTROLLER_PERIODS = (0.002, 0.008)
+
+
+def controller_period(t: np.ndarray) -> float | None:
+    """The period of a UR controller's timestamps (exact multiples of it) however many samples a
+    recorder skipped: the UR period nearest the 5th percentile of the positive intervals."""
+    dt = np.diff(np.asarray(t, dtype=float))
+    dt = dt[dt > 0]
+    if dt.size == 0:
+        return None
+    short = float(np.quantile(dt, 0.05))
+    return min(CONTROLLER_PERIODS, key=lambda p: abs(np.log(short / p)))
+
+
 def single_misses(t: np.ndarray, period_s: float | None) -> np.ndarray:
     """Intervals k (t[k] → t[k+1]) that miss exactly one period (:func:`missing_periods`) and
     whose neighbouring intervals are on time (≤ GAP_FACTOR·T): the one controller sample that a
