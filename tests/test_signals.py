@@ -71,12 +71,13 @@ def test_run_records_target_gravity_from_5_26_and_identifies_from_currents(tmp_p
     recorded = tmp_path / "ur_rtde_run.csv"   # ur_rtde's own recorder beside `urident run`
     with SimControllerProcess(host="127.0.0.136", robot="ur5e", version="5.26.0",
                               initial_q=[0.05, -1.45, 0.1, -1.6, 0.05, 0.0]):
-        recorder = subprocess.Popen([sys.executable, "-c", RECORD_RUN, "127.0.0.136", str(recorded), "9"])
+        recorder = subprocess.Popen([sys.executable, "-c", RECORD_RUN, "127.0.0.136", str(recorded)],
+                                    stdin=subprocess.PIPE, text=True)
         try:
             r = run_cli("127.0.0.136", "ur5e", small_trajectory(tmp_path / "t.yaml", "ur5e"), out,
                         config, "--yes")
         finally:
-            recorder.wait(timeout=60)
+            recorder.communicate("stop\n", timeout=60)
     assert r.returncode == 0, r.stderr
     print(check_ur_rtde_run_recording(recorded, "ur5e", tmp_path, capsys))
     log = load_log(out)

@@ -72,10 +72,10 @@ def test_repeated_rows_dropped_single_skips_bridged_real_losses_kept(tmp_path):
 RECORD_RUN = textwrap.dedent("""
     import sys, time
     import rtde_receive
-    host, path, seconds = sys.argv[1], sys.argv[2], float(sys.argv[3])
+    host, path = sys.argv[1], sys.argv[2]
     r = rtde_receive.RTDEReceiveInterface(host, 500.0)
     r.startFileRecording(path, ["timestamp", "actual_q", "actual_qd", "actual_current"])
-    time.sleep(seconds)
+    sys.stdin.readline()                  # until the run has ended
     r.stopFileRecording()
     r.disconnect()
 """)
