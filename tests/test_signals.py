@@ -6,6 +6,8 @@ identification never takes the compensated torque as a full one."""
 from __future__ import annotations
 
 import csv
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -57,6 +59,7 @@ def test_ur_rtde_reads_a_gravity_compensated_torque_at_rest(tmp_path):
 def test_run_records_target_gravity_from_5_26_and_identifies_from_currents(tmp_path, capsys):
     pytest.importorskip("rtde_control")
     from test_session_family import small_trajectory
+    from test_ur_rtde_recording import RECORD_RUN, check_ur_rtde_run_recording
     from test_session_sim import RELAXED, run_cli
 
     from urident.simcontroller.process import SimControllerProcess
@@ -65,11 +68,18 @@ def test_run_records_target_gravity_from_5_26_and_identifies_from_currents(tmp_p
     config = tmp_path / "relaxed.yaml"
     config.write_text(RELAXED)
     out = tmp_path / "run.csv"
+    recorded = tmp_path / "ur_rtde_run.csv"   # ur_rtde's own recorder beside `urident run`
     with SimControllerProcess(host="127.0.0.136", robot="ur5e", version="5.26.0",
                               initial_q=[0.05, -1.45, 0.1, -1.6, 0.05, 0.0]):
-        r = run_cli("127.0.0.136", "ur5e", small_trajectory(tmp_path / "t.yaml", "ur5e"), out,
-                    config, "--yes")
+        recorder = subprocess.Popen([sys.executable, "-c", RECORD_RUN, "127.0.0.136", str(recorded)],
+                                    stdin=subprocess.PIPE, text=True)
+        try:
+            r = run_cli("127.0.0.136", "ur5e", small_trajectory(tmp_path / "t.yaml", "ur5e"), out,
+                        config, "--yes")
+        finally:
+            recorder.communicate("stop\n", timeout=60)
     assert r.returncode == 0, r.stderr
+    print(check_ur_rtde_run_recording(recorded, "ur5e", tmp_path, capsys))
     log = load_log(out)
     assert log.tau is not None and log.metadata["torque_kind"] == "compensated"
     np.testing.assert_allclose(log.target_gravity, np.tile(-spec.gravity, (len(log), 1)))
@@ -130,7 +140,7 @@ def test_a_bags_effort_is_found_at_standstill_and_a_contradiction_refused(tmp_pa
                      "--bag", str(tmp_path / "never")]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and str(bags[kind]) in err[0], err
-        assert f"--effort {wrong} contradicts the effort at standstill" in err[0]
+        assert f"--effort {wrong} contradicts the effort (" in err[0]
         assert "joint 2: mean effort" in err[0] and f"pass --effort {kind}" in err[0]
     # the compensated bag carries no current: it is fitted only when asked, without gravity terms
     assert main(["identify", str(bags["compensated"]), "--robot", "ur5",
@@ -152,7 +162,7 @@ def test_a_bag_that_cannot_tell_asks_for_effort(tmp_path, capsys):
     with pytest.raises(Exception, match="cannot tell what JointState effort holds.*pass --effort"):
         load_log(bag, robot="ur5")
     got = load_log(bag, robot="ur5", effort="current")
-    assert any("effort taken as current (--effort), not checked" in n for n in got.metadata["notes"])
+    assert any("effort taken as current (--effort), not fully checked" in n for n in got.metadata["notes"])
 
 
 def test_convert_writes_each_effort_kind(tmp_path, capsys):

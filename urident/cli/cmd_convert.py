@@ -69,7 +69,8 @@ def bag_effort_values(recording, spec, effort: str):
     kind = torque_kind(recording)
     if effort == "current":
         if recording.metadata.get("current_from_torque"):
-            return recording.current, "motor current = full torque / drive gains (the log has no current)"
+            full = "(compensated torque + nominal gravity)" if kind == "compensated" else "full torque"
+            return recording.current, f"motor current = {full} / drive gains (the log has no current)"
         return recording.current, "the log's motor current"
     if kind == effort or (effort == "torque" and kind == "full"):
         return recording.tau, "the log's joint torque"

@@ -158,7 +158,8 @@ def load_log_from_args(
     """``load_log`` with the options of :func:`add_log_arguments`; prints the drop report
     (to stderr by default) when rows were dropped. ``rows`` overrides ``--rows`` (a command's
     rows for one group of its logs: ``gap --ident-rows``, ``payload --unloaded-rows``).
-    ``say_signal``: print which signal gives the torques (commands that fit or compare them)."""
+    ``say_signal``: print which signal gives the torques (to ``report`` or stdout; commands that
+    fit or compare them)."""
     recording = load_log(
         path,
         robot=robot,
@@ -196,7 +197,7 @@ def load_log_from_args(
             line = describe_signal(recording)
         except ConfigError as exc:
             raise LogFormatError(str(exc)) from None
-        print(f"urident: {line}", file=report or sys.stderr)
+        print(line, file=report or sys.stdout)  # a report line: stderr stays for warnings and errors
     check_log_usable(recording, allow_aborted=getattr(args, "log_allow_aborted", False),
                      allow_gaps=getattr(args, "log_allow_gaps", False))
     for note in recording.metadata.get("notes") or ():  # what a bag loader decided (time source, stops)

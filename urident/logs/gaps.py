@@ -136,6 +136,52 @@ def find_gaps(t: np.ndarray, period_s: float | None) -> list[Gap]:
     return gaps
 
 
+#: UR controller periods [s]: e-Series 500 Hz, CB3 125 Hz.
+CONTROLLER_PERIODS = (0.002, 0.008)
+
+
+def controller_period(t: np.ndarray) -> float | None:
+    """The period of a UR controller's timestamps (exact multiples of it) however many samples a
+    recorder skipped: the UR period nearest the 5th percentile of the positive intervals."""
+    dt = np.diff(np.asarray(t, dtype=float))
+    dt = dt[dt > 0]
+    if dt.size == 0:
+        return None
+    short = float(np.quantile(dt, 0.05))
+    return min(CONTROLLER_PERIODS, key=lambda p: abs(np.log(short / p)))
+
+
+def single_misses(t: np.ndarray, period_s: float | None) -> np.ndarray:
+    """Intervals k (t[k] → t[k+1]) that miss exactly one period (:func:`missing_periods`) and
+    whose neighbouring intervals are on time (≤ GAP_FACTOR·T): the one controller sample that a
+    recorder sampling the latest state on its own clock (ur_rtde's startFileRecording) skipped."""
+    t = np.asarray(t, dtype=float)
+    if period_s is None or t.size < 3:
+        return np.zeros(0, dtype=int)
+    dt = np.diff(t)
+    one = (dt > GAP_FACTOR * period_s) & (np.round(dt / period_s) == 2)
+    on_time = dt <= GAP_FACTOR * period_s
+    neighbours = np.r_[False, on_time[:-1]] & np.r_[on_time[1:], False]
+    return np.flatnonzero(one & neighbours)
+
+
+def bridge_single_misses(arrays: dict[str, np.ndarray], period_s: float | None,
+                         integer: frozenset[str] = frozenset()) -> tuple[dict[str, np.ndarray], int]:
+    """``arrays`` (``t`` and per-sample arrays) with a sample inserted in every
+    :func:`single_misses` interval: the mean of its two neighbours (linear interpolation at the
+    midpoint, where the missing sample lies); arrays named in ``integer`` (codes, bits) repeat the
+    sample before. Returns the new arrays and how many samples were inserted."""
+    k = single_misses(arrays["t"], period_s)
+    if k.size == 0:
+        return arrays, 0
+    out = {}
+    for name, x in arrays.items():
+        x = np.asarray(x)
+        new = x[k] if name in integer else 0.5 * (x[k] + x[k + 1])
+        out[name] = np.insert(x, k + 1, new.astype(x.dtype, copy=False), axis=0)
+    return out, int(k.size)
+
+
 def recording_gaps(recording) -> list[Gap]:
     """The gaps of a loaded :class:`~urident.logs.Recording` (after any row selection)."""
     return find_gaps(recording.t, nominal_period(recording.t, recording.rate_hz))

@@ -433,7 +433,22 @@ class _Loader:
         if self.sample_count_mismatch:
             metadata["dropped"]["sample_count_mismatch"] = self.sample_count_mismatch
 
-        rate = (sidecar or {}).get("rate_hz")
+        if fmt == FORMAT_UR_RTDE:
+            # ur_rtde's recorder samples the latest state on its own clock: next to the repeated
+            # rows (dropped above) it skips single controller samples; each is bridged
+            from .gaps import bridge_single_misses, controller_period
+
+            period = controller_period(arrays["t"])
+            ints = frozenset(a for a in arrays if FIELDS_BY_ATTR[a].dtype == "int")
+            arrays, bridged = bridge_single_misses(arrays, period, ints)
+            metadata["rate_hz"] = None if period is None else 1.0 / period
+            metadata["bridged"] = bridged
+            if bridged or self.duplicates:
+                metadata.setdefault("notes", []).append(
+                    f"{self.path}: ur_rtde recording: {self.duplicates} repeated row(s) dropped, "
+                    f"{bridged} single missing period(s) bridged (each sample the mean of its two "
+                    "neighbours, whose intervals are on time); longer losses stay gaps")
+        rate = (sidecar or {}).get("rate_hz") or metadata.get("rate_hz")
         if rate is None and arrays["t"].shape[0] > 1:
             rate = float(f"{1.0 / np.median(np.diff(arrays['t'])):.6g}")
         if header is not None and cmap.spec == "header":

@@ -39,18 +39,22 @@ DEFAULT_TOPIC = "/joint_states"
 #: default), full joint torques [N·m], or UR's gravity-compensated torques [N·m]
 #: (actual_current_as_torque: the driver with use_currents_as_efforts false).
 EFFORTS = ("current", "torque", "compensated")
-#: The effort check (:func:`effort_meaning`): samples with every |q̇| below this are standstill,
-#: at least MIN_STANDSTILL of them; a joint (2 or 3) is gravity-loaded there when its nominal
-#: gravity torque is at least GRAVITY_SHARE of the one with the arm stretched horizontal.
+#: The effort check (:func:`effort_meaning`). Unit, from the motion: on joints whose nominal
+#: inertial + friction torque d has an RMS of at least DYNAMIC_NM, the effort regressed on
+#: (d, gravity G) gives d's coefficient a: a x drive gain in UNIT_BAND → amperes, a in UNIT_BAND →
+#: newton-metres (the two are a drive gain, ~10, apart). Gravity, at standstill (every |q̇| below
+#: STANDSTILL_RAD_S, at least MIN_STANDSTILL messages) on joints 2-3 whose nominal gravity torque
+#: is at least GRAVITY_SHARE of the one with the arm stretched horizontal: the effort's scale s
+#: against G. A current has s x gain in UNIT_BAND; a newton-metre effort with s in FOLLOWS_GRAVITY
+#: is a full torque, with |s| below COMPENSATED_SCALE a gravity-compensated one.
+MOVING_RAD_S = 0.05
+MIN_MOVING = 50
+DYNAMIC_NM = 0.5
+UNIT_BAND = (0.5, 2.0)
 STANDSTILL_RAD_S = 0.005
 MIN_STANDSTILL = 10
 GRAVITY_SHARE = 0.2
-#: Effort / gravity scale bands: a current (x drive gain) or a full torque follows gravity
-#: (FOLLOWS_GRAVITY; measured on the UR10e logs in /work/shared/data: 0.97 and 1.17 on joints
-#: 2 and 3); a compensated torque does not (|scale| below COMPENSATED_SCALE), unless its scale
-#: x drive gain falls in AMBIGUOUS, where it could be a current: then the bag cannot tell.
-FOLLOWS_GRAVITY = (0.7, 1.4)
-AMBIGUOUS = (0.5, 2.0)
+FOLLOWS_GRAVITY = (0.5, 2.0)
 COMPENSATED_SCALE = 0.3
 FORMAT_ROSBAG2 = "rosbag2"
 STORAGES = ("mcap", "sqlite3")
@@ -495,7 +499,7 @@ class _BagLoader:
         from urident.model import load_robot
 
         spec = load_robot(self.robot)
-        effort = self._effort(spec, q, qd, eff)
+        effort = self._effort(spec, t, q, qd, eff)
         tau = None
         current = eff
         metadata: dict[str, Any] = {
@@ -529,9 +533,9 @@ class _BagLoader:
                          robot=self.robot, rate_hz=rate, metadata=metadata,
                          safety_status_bits=bits, robot_mode=mode)
 
-    def _effort(self, spec, q, qd, eff) -> str:
-        """The effort's meaning: ``--effort`` checked against gravity at standstill, or found there."""
-        found, figures = effort_meaning(spec, q, qd, eff)
+    def _effort(self, spec, t, q, qd, eff) -> str:
+        """The effort's meaning: ``--effort`` checked (:func:`effort_meaning`), or the one found."""
+        found, possible, figures = effort_meaning(spec, t, q, qd, eff)
         if self.effort is None:
             if found is None:
                 raise LogFormatError(f"{self.path}: {self.topic}: cannot tell what JointState effort "
@@ -539,13 +543,13 @@ class _BagLoader:
                                      "compensated (docs/signals.md)")
             self.notes.append(f"{self.path}: effort read as {found} ({figures})")
             return found
+        if self.effort not in possible:
+            hint = f"; pass --effort {found}" if found else ""
+            raise LogFormatError(f"{self.path}: --effort {self.effort} contradicts the effort "
+                                 f"({figures}): not {_EFFORT_TEXT[self.effort]}{hint}")
         if found is None:
-            self.notes.append(f"{self.path}: effort taken as {self.effort} (--effort), not checked: "
-                              f"{figures}")
-        elif found != self.effort:
-            raise LogFormatError(f"{self.path}: --effort {self.effort} contradicts the effort at "
-                                 f"standstill ({figures}): it is {_EFFORT_TEXT[found]}; pass "
-                                 f"--effort {found}")
+            self.notes.append(f"{self.path}: effort taken as {self.effort} (--effort), not fully "
+                              f"checked: {figures}")
         else:
             self.notes.append(f"{self.path}: effort is {self.effort} as given ({figures})")
         return self.effort
@@ -567,9 +571,9 @@ class _BagLoader:
         return {"topic": topic, "min_percent": lo, "max_percent": hi, "unit": unit}
 
 
-_EFFORT_TEXT = {"current": "a motor current (follows gravity / drive gain)",
-                "torque": "a full joint torque (follows gravity)",
-                "compensated": "a gravity-compensated torque (near zero against gravity)"}
+_EFFORT_TEXT = {"current": "a motor current (the torque / drive gain, gravity in it)",
+                "torque": "a full joint torque (N·m, gravity in it)",
+                "compensated": "a gravity-compensated torque (N·m, near zero against gravity)"}
 
 
 def _nominal_gravity(spec, q: np.ndarray) -> np.ndarray:
@@ -579,17 +583,57 @@ def _nominal_gravity(spec, q: np.ndarray) -> np.ndarray:
     return joint_torques(spec, spec.nominal_params, q, zero, zero)
 
 
-def effort_meaning(spec, q: np.ndarray, qd: np.ndarray, effort: np.ndarray) -> tuple[str | None, str]:
-    """What an (N, 6) effort holds, judged on joints 2-3 at standstill against the nominal
-    model's gravity torque G: a motor current follows G / drive gain, a full torque follows G, a
-    gravity-compensated torque stays near zero. Returns (``current`` / ``torque`` /
-    ``compensated``, the figures) or (None, why it cannot tell: no standstill, no gravity load,
-    or joints that disagree)."""
+def _effort_unit(spec, t, q, qd, effort) -> tuple[str | None, str]:
+    """``A`` or ``N·m`` from the moving samples (module constants), with the figures."""
+    from urident.model.regressor import joint_torques
+
+    moving = np.flatnonzero(np.max(np.abs(qd), axis=1) >= MOVING_RAD_S)
+    if moving.size < MIN_MOVING:
+        return None, f"fewer than {MIN_MOVING} moving messages to tell A from N·m"
+    qdd = np.gradient(qd, t, axis=0) if t.size > 1 else np.zeros_like(qd)
+    kernel = np.ones(9) / 9.0  # the differentiated velocity's noise, smoothed over ~9 samples
+    qdd = np.column_stack([np.convolve(qdd[:, j], kernel, mode="same") for j in range(N_JOINTS)])
+    index = moving[np.linspace(0, moving.size - 1, min(moving.size, 2000)).astype(int)]
+    full = joint_torques(spec, spec.nominal_params, q[index], qd[index], qdd[index])
+    g = _nominal_gravity(spec, q[index])
+    d = full - g
+    gains = np.asarray(spec.drive_gains, dtype=float)
+    units, parts = [], []
+    for j in range(N_JOINTS):
+        if np.sqrt(np.mean(d[:, j] ** 2)) < DYNAMIC_NM:
+            continue
+        a = float(np.linalg.lstsq(np.column_stack([d[:, j], g[:, j]]), effort[index, j], rcond=None)[0][0])
+        unit = ("A" if UNIT_BAND[0] <= a * gains[j] <= UNIT_BAND[1] else
+                "N·m" if UNIT_BAND[0] <= a <= UNIT_BAND[1] else None)
+        units.append(unit)
+        parts.append(f"{j + 1}: {a:.3g}")
+    if not units:
+        return None, f"no joint with {DYNAMIC_NM} N·m RMS of dynamic torque to tell A from N·m"
+    figures = "effort / nominal dynamic torque on joints " + ", ".join(parts)
+    found = {u for u in units if u is not None}
+    if len(found) != 1:
+        return None, figures + " (neither A nor N·m throughout)"
+    return found.pop(), figures
+
+
+def effort_meaning(spec, t: np.ndarray, q: np.ndarray, qd: np.ndarray,
+                   effort: np.ndarray) -> tuple[str | None, set[str], str]:
+    """What an (N, 6) effort holds: its unit from the motion (a current is the nominal torque /
+    drive gain, a torque the torque), then, on joints 2-3 at standstill, its scale against the
+    nominal gravity G (a current and a full torque follow G, a gravity-compensated torque stays
+    near zero); module constants. Returns (``current`` / ``torque`` / ``compensated`` or None when
+    it cannot tell, the kinds not excluded, the figures)."""
+    kinds = set(EFFORTS)
     if not np.any(effort):  # a driver that lists the field but never fills it
-        return None, "every effort is zero"
+        return None, kinds, "every effort is zero"
+    unit, figures = _effort_unit(spec, t, q, qd, effort)
+    if unit is not None:
+        kinds = {"current"} if unit == "A" else {"torque", "compensated"}
+        figures = f"{unit}: {figures}"
     still = np.max(np.abs(qd), axis=1) < STANDSTILL_RAD_S
     if int(still.sum()) < MIN_STANDSTILL:
-        return None, f"fewer than {MIN_STANDSTILL} messages at standstill (|qd| < {STANDSTILL_RAD_S} rad/s)"
+        return None, kinds, (f"{figures}; fewer than {MIN_STANDSTILL} messages at standstill "
+                             f"(|qd| < {STANDSTILL_RAD_S} rad/s)")
     index = np.flatnonzero(still)
     index = index[np.linspace(0, index.size - 1, min(index.size, 400)).astype(int)]
     g = _nominal_gravity(spec, q[index])
@@ -597,29 +641,29 @@ def effort_meaning(spec, q: np.ndarray, qd: np.ndarray, effort: np.ndarray) -> t
     gains = np.asarray(spec.drive_gains, dtype=float)
     joints = [j for j in (1, 2) if np.mean(np.abs(g[:, j])) >= GRAVITY_SHARE * stretched[j]]
     if not joints:
-        return None, (f"no gravity load on joints 2-3 at standstill ({int(still.sum())} messages; "
-                      f"under {GRAVITY_SHARE:.0%} of the arm stretched horizontal)")
-    kinds, parts = [], []
+        return None, kinds, (f"{figures}; no gravity load on joints 2-3 at standstill "
+                             f"({int(still.sum())} messages; under {GRAVITY_SHARE:.0%} of the arm "
+                             "stretched horizontal)")
+    votes, parts = [], []
     for j in joints:
         e = effort[index, j]
         scale = float(e @ g[:, j] / (g[:, j] @ g[:, j]))
-        as_current = scale * gains[j]
-        lo, hi = FOLLOWS_GRAVITY
-        if lo <= as_current <= hi:
-            kinds.append("current")
-        elif lo <= scale <= hi:
-            kinds.append("torque")
-        elif abs(scale) < COMPENSATED_SCALE and not AMBIGUOUS[0] <= as_current <= AMBIGUOUS[1]:
-            kinds.append("compensated")
-        else:
-            kinds.append(None)
+        vote = set()  # the kinds this joint allows (a small positive scale: current or compensated)
+        if UNIT_BAND[0] <= scale * gains[j] <= UNIT_BAND[1]:
+            vote.add("current")
+        if FOLLOWS_GRAVITY[0] <= scale <= FOLLOWS_GRAVITY[1]:
+            vote.add("torque")
+        if abs(scale) < COMPENSATED_SCALE:
+            vote.add("compensated")
+        votes.append(vote)
         parts.append(f"joint {j + 1}: mean effort {np.mean(e):.4g} against nominal gravity "
-                     f"{np.mean(g[:, j]):.4g} N·m (effort/gravity {scale:.3g}, x drive gain "
-                     f"{as_current:.3g})")
-    figures = f"{int(still.sum())} messages at standstill; " + ", ".join(parts)
-    if None in kinds or len(set(kinds)) > 1:
-        return None, figures + "; neither current, full nor compensated torque"
-    return kinds[0], figures
+                     f"{np.mean(g[:, j]):.4g} N·m (effort/gravity {scale:.3g})")
+    for vote in votes:
+        kinds &= vote
+    figures = f"{figures}; {int(still.sum())} messages at standstill, " + ", ".join(parts)
+    if unit is None or len(kinds) != 1:
+        return None, kinds, figures + ("; contradictory" if not kinds else "")
+    return next(iter(kinds)), kinds, figures
 
 
 # --------------------------------------------------------------------------------------- output
