@@ -8,6 +8,7 @@ Commands run in-process (``urident.cli.main.main``) on short UR5 simulations; fe
 from __future__ import annotations
 
 import math
+import re
 import shutil
 from pathlib import Path
 
@@ -160,8 +161,6 @@ MJCF_ATTRS = st.sampled_from(["mass", "fullinertia", "pos"])
 def test_gap_sim_model_contents(data, capfd, monkeypatch, fmt, attr, value, body):
     """A simulator model with one inertial value replaced: MuJoCo's log file and urdfdom's lines never
     appear; the torques at rest must be the arm's."""
-    import re
-
     text = (data / f"ur5.{fmt}").read_text()
     if fmt == "xml":
         pattern = {"mass": r'mass="[^"]*"', "fullinertia": r'fullinertia="[^" ]*', "pos": r'<inertial pos="[^" ]*'}[attr]
@@ -227,3 +226,67 @@ def test_bag_metadata_contents(data, capfd, pick, value, garbage):
         node[path[-1]] = value
         meta.write_text(yaml.safe_dump(doc))
     _run(capfd, ["validate", "--params", data / "arm_params.yaml", bag], data)
+
+
+# -- the issue's cases, one each ------------------------------------------------------------------
+
+def _one_line(capfd, argv, *needles) -> str:
+    capfd.readouterr()
+    assert main([str(a) for a in argv]) == 2
+    out, err = capfd.readouterr()
+    assert err.count("\n") == 1 and err.startswith("urident: error: "), err
+    for needle in needles:
+        assert needle in err, err
+    return err
+
+
+@pytest.mark.parametrize("overwrite", [[], ["--overwrite"]])
+def test_two_outputs_to_one_path_are_refused_before_any_work(data, capfd, overwrite):
+    out = _fresh(data, "same.out")
+    _one_line(capfd, ["export", "--nominal", "--robot", "ur5", "--mjcf", out, "--urdf", out, *overwrite],
+              "--urdf", "also the --mjcf output")
+    assert not out.exists()
+    params = data / "arm_params.yaml"
+    before = params.read_bytes()
+    _one_line(capfd, ["export", params, "--urdf", params, "--overwrite"], "is also the input")
+    assert params.read_bytes() == before
+
+
+def test_gap_ident_from_and_check_rows(data, capfd):
+    listing = data / "ident.txt"
+    listing.write_text("arm.csv\n")
+    capfd.readouterr()
+    assert main(["gap", "--robot", "ur5", "--ident-from", str(listing), "--valid", str(data / "valid.csv"),
+                 "--rows", "1-400", "--max-effects", "1", "--effects", "current_offset"]) == 0
+    _one_line(capfd, ["gap", "--robot", "ur5", "--ident", data / "arm.csv", "--valid", data / "valid.csv",
+                      "--check-rows", "1-100"], "--check-rows needs --check")
+
+
+def test_simulator_models_libraries_cannot_read(data, capfd, monkeypatch):
+    """urdfdom's lines and MuJoCo's MUJOCO_LOG.TXT never reach the terminal or the directory."""
+    monkeypatch.chdir(data / "cwd" if (data / "cwd").is_dir() else data)
+    urdf = data / "nan.urdf"
+    urdf.write_text(re.sub(r'damping="[^"]*"', 'damping="nan"', (data / "ur5.urdf").read_text(), count=1))
+    _one_line(capfd, ["gap", "--robot", "ur5", "--sim", urdf, "--valid", data / "valid.csv"],
+              "<joint name=", "<dynamics damping='nan'>")
+    mjcf = data / "nan.xml"
+    mjcf.write_text(re.sub(r'mass="[^"]*"', 'mass="nan"', (data / "ur5.xml").read_text(), count=1))
+    work = data / "mjcwd"
+    work.mkdir(exist_ok=True)
+    monkeypatch.chdir(work)
+    _one_line(capfd, ["gap", "--robot", "ur5", "--sim", mjcf, "--valid", data / "valid.csv"], "NaN")
+    assert list(work.iterdir()) == []
+
+
+def test_messages_name_the_culprit(data, capfd):
+    _one_line(capfd, ["payload", data / "load.csv", "--params", data / "arm_params.yaml", "--unloaded",
+                      data / "arm.csv", "--unloaded-rows", "1-1", "--out", _fresh(data, "p.yaml")],
+              f"--unloaded {data / 'arm.csv'} (--unloaded-rows 1-1)")
+    _one_line(capfd, ["excite", "--robot", "ur5", "--tool-capsule", "10,10", "--out", _fresh(data, "t.yaml")],
+              "tool capsule: radius 10 m")
+    bag = data / "garbage_bag"
+    if bag.exists():
+        shutil.rmtree(bag)
+    shutil.copytree(data / "bag", bag)
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information:\n  version: [1, 2\n: :\n")
+    _one_line(capfd, ["validate", "--params", data / "arm_params.yaml", bag], "metadata.yaml:3:")
