@@ -79,6 +79,8 @@ def run(args: argparse.Namespace) -> int:
     if arm.robot != spec.name:
         raise ConfigError(f"{args.params}: parameters are for robot {arm.robot!r}, not {spec.name!r}")
     check_compatible(arm, spec, str(args.params))
+    if args.mass_range is not None:
+        spec.check_rated_payload(args.mass_range[0], f"--mass-range {args.mass_range[0]:g},{args.mass_range[1]:g}")
     recordings = [load_log_from_args(p, args, robot=spec.name) for p in args.logs]
     prediction = predict_recordings(arm, recordings, spec, drive_gains=args.drive_gains or None)
     unloaded = None

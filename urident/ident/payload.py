@@ -607,6 +607,10 @@ def estimate_payload(params, spec, data, mass_range=None, regularisation: float 
     reg = DEFAULT_REGULARISATION if regularisation is None else regularisation
     phi_c = _consistent(aw, yw, phi, free, mass_range, noise_var, reg)
     phi_c[4:10] += _psd_repair(phi_c)
+    problem = spec.rated_payload_problem(float(phi_c[0])) or spec.tool_com_problem(phi_c[1:4] / phi_c[0])
+    if problem:    # no file the arm's commands would refuse to read
+        raise PayloadError(f"the estimated tool is not one the arm can carry: {problem} (are the arm's "
+                           "parameters and drive gains right for these logs?)")
     bound = mass_bound(phi_c[0], mass_range)
     cons_info = info if bound is None else {**info, "mass_bound_kg": bound}
     cons = from_flange_vector(spec.name, phi_c, sigma=_sigma_dict(phi_c, sigma),
