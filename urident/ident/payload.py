@@ -76,6 +76,9 @@ class Payload:
             raise PayloadError(f"payload mass must be positive, not {self.mass_kg:g} kg")
         object.__setattr__(self, "com_m", np.asarray(self.com_m, dtype=float).reshape(3))
         inertia = np.asarray(self.inertia_kg_m2, dtype=float).reshape(3, 3)
+        if not (np.all(np.isfinite(self.com_m)) and np.all(np.isfinite(inertia))):
+            raise PayloadError(f"payload centre of mass and inertia must be finite, not {self.com_m.tolist()}, "
+                               f"{inertia.tolist()}")
         object.__setattr__(self, "inertia_kg_m2", 0.5 * (inertia + inertia.T))
 
     @property
