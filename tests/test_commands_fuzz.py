@@ -163,12 +163,14 @@ def test_gap_sim_model_contents(data, capfd, monkeypatch, fmt, attr, value, body
     appear; the torques at rest must be the arm's."""
     text = (data / f"ur5.{fmt}").read_text()
     if fmt == "xml":
-        pattern = {"mass": r'mass="[^"]*"', "fullinertia": r'fullinertia="[^" ]*', "pos": r'<inertial pos="[^" ]*'}[attr]
+        pattern = {"mass": r'mass="[^"]*"', "fullinertia": r'fullinertia="[^" ]*',
+                   "pos": r'<inertial pos="[^" ]*'}[attr]
         repl = {"mass": f'mass="{value!r}"', "fullinertia": f'fullinertia="{value!r}',
                 "pos": f'<inertial pos="{value!r}'}[attr]
     else:
         pattern = {"mass": r'<mass value="[^"]*"', "fullinertia": r'ixx="[^"]*"', "pos": r'damping="[^"]*"'}[attr]
-        repl = {"mass": f'<mass value="{value!r}"', "fullinertia": f'ixx="{value!r}"', "pos": f'damping="{value!r}"'}[attr]
+        repl = {"mass": f'<mass value="{value!r}"', "fullinertia": f'ixx="{value!r}"',
+                "pos": f'damping="{value!r}"'}[attr]
     matches = list(re.finditer(pattern, text))
     m = matches[body % len(matches)]
     model = data / f"fuzz_model.{fmt}"
@@ -260,6 +262,8 @@ def test_gap_ident_from_and_check_rows(data, capfd):
                  "--rows", "1-400", "--max-effects", "1", "--effects", "current_offset"]) == 0
     _one_line(capfd, ["gap", "--robot", "ur5", "--ident", data / "arm.csv", "--valid", data / "valid.csv",
                       "--check-rows", "1-100"], "--check-rows needs --check")
+    _one_line(capfd, ["gap", "--robot", "ur5", "--sim", data / "ur5.xml", "--valid", data / "valid.csv",
+                      "--check", data / "arm.csv"], "--check is not available with --sim")
 
 
 def test_simulator_models_libraries_cannot_read(data, capfd, monkeypatch):

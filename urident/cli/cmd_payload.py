@@ -97,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
         shown_rows = f" rows {rows[0]}-{rows[1]}" if rows else ""
         flag = (f" (--unloaded-rows {rows[0]}-{rows[1]})" if args.unloaded_rows else
                 f" (--rows {rows[0]}-{rows[1]})" if rows else "")
-        for p, rec in zip(args.unloaded, tare):   # the clearer message first: a still wrist is no tare of a payload motion
+        for p, rec in zip(args.unloaded, tare):   # the clearer message first: a still wrist is no tare
             check_wrist_motion(rec.q, f"--unloaded {p}{flag}")
         check_same_motion([(str(p), r.t, r.q) for p, r in zip(args.logs, recordings)],
                           [(f"--unloaded {p}{shown_rows}", r.t, r.q) for p, r in zip(args.unloaded, tare)])
