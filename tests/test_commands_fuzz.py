@@ -94,8 +94,11 @@ def test_payload_options(data, capfd, mass_range, tare, tare_rows):
     if tare in ("load", "copy"):
         assert code == 2            # the loaded log as its own tare
     if code == 0:
-        doc = yaml.safe_load(out.read_text())
+        from urident.ident.payload_file import load_payload
+
         spec = load_robot("ur5")
+        load_payload(out, spec)           # what the command wrote, every reader reads
+        doc = yaml.safe_load(out.read_text())
         assert 0 < doc["mass_kg"] <= spec.payload_kg and np.all(np.isfinite(doc["com_m"]))
         low, high = sorted(mass_range)
         if min(abs(doc["mass_kg"] - low), abs(doc["mass_kg"] - high)) < 5e-4 * doc["mass_kg"]:
