@@ -15,7 +15,7 @@ from urident.ident.estimate_consistent import is_physically_consistent
 from urident.ident.friction import dahl_state
 from urident.ident.preprocess import Prepared, rest_trim_range
 from urident.ident.synthetic import random_multisine, synthetic_recording
-from urident.ident.torque import estimate_drive_gains, payload_params, payload_torque
+from urident.ident.torque import DriveGainError, estimate_drive_gains, payload_params, payload_torque
 from urident.model import joint_torques, load_robot
 
 
@@ -107,9 +107,13 @@ def test_drive_gain_estimation_from_payload_runs():
     est = estimate_drive_gains(spec, runs[0], runs[1], payload)
     np.testing.assert_allclose(est.gains, true_gains, rtol=0.02)
     assert np.all(np.abs(est.gains - true_gains) < 4 * est.sigma)
-    # without the payload's torque there is nothing to fix the scale: the estimate must be wrong
-    assert not np.allclose(estimate_drive_gains(spec, runs[0], runs[1], 0.1 * payload).gains,
-                           true_gains, rtol=0.02)
+    # the payload's torque fixes the scale: a load given 10x too light gives gains 10x too large,
+    # which no drive has (refused, not returned); the runs swapped give negative ones
+    with pytest.raises(DriveGainError, match="does not show the given load"):
+        estimate_drive_gains(spec, runs[0], runs[1], 0.1 * payload)
+    with pytest.raises(DriveGainError, match="negative") as swapped:
+        estimate_drive_gains(spec, runs[1], runs[0], payload)
+    assert swapped.value.swapped
 
 
 # ----------------------------------------------------------------------------- estimation

@@ -44,22 +44,24 @@ CALIBRATED_PCT = 1.0
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
+    from urident.errors import ConfigError
     from urident.ident import PreprocessConfig, prepare
     from urident.ident.gains_file import save_gains
     from urident.ident.payload import check_wrist_motion
-    from urident.errors import ConfigError
     from urident.ident.torque import DriveGainError, estimate_drive_gains, gain_problem
-    from urident.logs.cli_args import refuse_same_logs
     from urident.logs import load_log_from_args
+    from urident.logs.cli_args import refuse_same_logs
     from urident.model import load_robot
 
     options.distinct_outputs(("--out", args.out), ("--json-out", args.json_out),
-                             inputs=options.log_inputs("--without", args.without) + options.log_inputs("--with", args.with_))
+                             inputs=options.log_inputs("--without", args.without)
+                             + options.log_inputs("--with", args.with_))
     options.output_path("--out", args.out, args.overwrite)
     options.output_path("--json-out", args.json_out, args.overwrite)
 
     rows = getattr(args, "log_rows", None)
-    refuse_same_logs([(f"--with {p}", p, rows) for p in args.with_], [(f"--without {p}", p, rows) for p in args.without],
+    refuse_same_logs([(f"--with {p}", p, rows) for p in args.with_],
+                     [(f"--without {p}", p, rows) for p in args.without],
                      "the loaded and the unloaded runs must be two recordings")
     spec = load_robot(args.robot)
     payload = options.point_payload(args, spec)
@@ -94,8 +96,8 @@ def run(args: argparse.Namespace) -> int:
             kept.append(j)
     gains = np.array([spec.drive_gains[j] if j in kept else g for j, g in enumerate(est.gains)])
     data = {"without": list(args.without), "with": list(args.with_), "payload_mass_kg": args.payload_mass,
-            "payload_com_m": [float(v) for v in payload.com_m], "robot_file_gains": [float(g) for g in spec.drive_gains]}
-    data["robot_file_gain_kept"] = [j + 1 for j in kept]
+            "payload_com_m": [float(v) for v in payload.com_m],
+            "robot_file_gains": [float(g) for g in spec.drive_gains], "robot_file_gain_kept": [j + 1 for j in kept]}
     save_gains(args.out, spec.name, gains, est.sigma, METHOD, data, overwrite=args.overwrite)
     data["calibrated"] = calibrated
     print(f"drive gains on {spec.name} [N·m/A] (robot file: "

@@ -106,8 +106,9 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from urident.gap import GapConfig, diagnose, format_report
+    from urident.errors import ConfigError
     from urident.gap.candidates import EFFECTS
-    from urident.logs.cli_args import logs_from_args
+    from urident.logs.cli_args import expand_log_paths, logs_from_args
     from urident.model import load_robot
     from urident.progress import Working
 
@@ -116,20 +117,14 @@ def run(args: argparse.Namespace) -> int:
     options.distinct_outputs(("--json-out", args.json_out), ("--write-sim", args.write_sim),
                              ("--save", getattr(args, "rerun_save", None)))
     if args.check_rows is not None and not args.check:
-        from urident.errors import ConfigError
-
         raise ConfigError("--check-rows needs --check LOG")
     if args.sim and args.check:
-        from urident.errors import ConfigError
-
         raise ConfigError("--check is not available with --sim (the held-out check tests the paper "
                           "baseline's findings); leave one out")
     if args.sim or args.write_sim or args.joint_map:
         from urident.cli.gap_sim import run_sim
 
         return run_sim(args, _load_all, _json_default)
-    from urident.errors import ConfigError
-
     if not args.ident and not args.ident_from:
         raise ConfigError("--ident LOG is required (or --sim MODEL for a simulator model's gap)")
     effects = args.effects or EFFECTS
@@ -151,8 +146,6 @@ def run(args: argparse.Namespace) -> int:
     ident = _load_all(ident_paths, args, args.ident_rows, spec.name, "identification")
     valid = _load_all(valid_paths, args, args.valid_rows, spec.name, "validation")
     if args.check:
-        from urident.logs.cli_args import expand_log_paths
-
         check_logs = _load_all(expand_log_paths(args.check, "--check"), args, args.check_rows, spec.name, "check")
     with Working("gap: diagnosis"):
         result = diagnose(ident, valid, spec, params=params, drive_gains=drive_gains, config=config,

@@ -79,6 +79,8 @@ def run(args: argparse.Namespace) -> int:
     if arm.robot != spec.name:
         raise ConfigError(f"{args.params}: parameters are for robot {arm.robot!r}, not {spec.name!r}")
     check_compatible(arm, spec, str(args.params))
+    if args.mass_range is not None:
+        spec.check_rated_payload(args.mass_range[0], f"--mass-range {args.mass_range[0]:g},{args.mass_range[1]:g}")
     recordings = [load_log_from_args(p, args, robot=spec.name, say_signal=True) for p in args.logs]
     prediction = predict_recordings(arm, recordings, spec, drive_gains=args.drive_gains or None)
     unloaded = None
@@ -96,7 +98,7 @@ def run(args: argparse.Namespace) -> int:
         shown_rows = f" rows {rows[0]}-{rows[1]}" if rows else ""
         flag = (f" (--unloaded-rows {rows[0]}-{rows[1]})" if args.unloaded_rows else
                 f" (--rows {rows[0]}-{rows[1]})" if rows else "")
-        for p, rec in zip(args.unloaded, tare):   # the clearer message first: a still wrist is no tare of a payload motion
+        for p, rec in zip(args.unloaded, tare):   # the clearer message first: a still wrist is no tare
             check_wrist_motion(rec.q, f"--unloaded {p}{flag}")
         check_same_motion([(str(p), r.t, r.q) for p, r in zip(args.logs, recordings)],
                           [(f"--unloaded {p}{shown_rows}", r.t, r.q) for p, r in zip(args.unloaded, tare)])

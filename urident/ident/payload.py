@@ -76,6 +76,9 @@ class Payload:
             raise PayloadError(f"payload mass must be positive, not {self.mass_kg:g} kg")
         object.__setattr__(self, "com_m", np.asarray(self.com_m, dtype=float).reshape(3))
         inertia = np.asarray(self.inertia_kg_m2, dtype=float).reshape(3, 3)
+        if not (np.all(np.isfinite(self.com_m)) and np.all(np.isfinite(inertia))):
+            raise PayloadError(f"payload centre of mass and inertia must be finite, not {self.com_m.tolist()}, "
+                               f"{inertia.tolist()}")
         object.__setattr__(self, "inertia_kg_m2", 0.5 * (inertia + inertia.T))
 
     @property
@@ -606,8 +609,14 @@ def estimate_payload(params, spec, data, mass_range=None, regularisation: float 
                              identifiable=identifiable, method="ols", info=info)
     reg = DEFAULT_REGULARISATION if regularisation is None else regularisation
     phi_c = _consistent(aw, yw, phi, free, mass_range, noise_var, reg)
-    phi_c[4:10] += _psd_repair(phi_c)
     bound = mass_bound(phi_c[0], mass_range)
+    if bound is not None:    # on the bound, not the solver's 1e-8 beside it (a bound at the rated payload)
+        phi_c[0] = bound
+    phi_c[4:10] += _psd_repair(phi_c)
+    problem = spec.rated_payload_problem(float(phi_c[0])) or spec.tool_com_problem(phi_c[1:4] / phi_c[0])
+    if problem:    # no file the arm's commands would refuse to read
+        raise PayloadError(f"the estimated tool is not one the arm can carry: {problem} (are the arm's "
+                           "parameters and drive gains right for these logs?)")
     cons_info = info if bound is None else {**info, "mass_bound_kg": bound}
     cons = from_flange_vector(spec.name, phi_c, sigma=_sigma_dict(phi_c, sigma),
                               identifiable=tuple(n for n in identifiable if bound is None or n != "m"),
@@ -618,8 +627,8 @@ def estimate_payload(params, spec, data, mass_range=None, regularisation: float 
 
 
 #: The consistent mass counts as on a ``mass_range`` bound within this relative distance (the
-#: solver's tolerance is ~1e-8): the bound, not the data, then sets it.
-BOUND_TOL = 1e-4
+#: solver's tolerance is ~1e-8, 1e-4 seen when it ends "inaccurate"): the bound, not the data, sets it.
+BOUND_TOL = 1e-3
 
 
 def mass_bound(mass: float, mass_range) -> float | None:
@@ -633,13 +642,16 @@ def mass_bound(mass: float, mass_range) -> float | None:
 
 
 def _psd_repair(phi: np.ndarray) -> np.ndarray:
-    """Change of the flange inertia entries that lifts the solver's tiny negative eigenvalues of
-    the inertia about the centre of mass to zero (the SDP's tolerance)."""
+    """Change of the flange inertia entries that lifts the solver's negative eigenvalues of the
+    second-moment matrix about the centre of mass, Σ = tr(I_c)/2·1 − I_c, to zero (the SDP's
+    tolerance): I_c = tr(Σ)·1 − Σ is then ⪰ 0 and within the triangle inequality, as the payload
+    file's reader requires."""
     m = phi[0]
     c = phi[1:4] / m
     ic = _tensor(phi[4:10]) - m * (c @ c * np.eye(3) - np.outer(c, c))
-    w, v = np.linalg.eigh(ic)
-    d = (v * (np.clip(w, 0, None) - w)) @ v.T
+    w, v = np.linalg.eigh(0.5 * np.trace(ic) * np.eye(3) - ic)
+    second = (v * np.clip(w, 0, None)) @ v.T
+    d = np.trace(second) * np.eye(3) - second - ic
     return np.array([d[0, 0], d[1, 1], d[2, 2], d[1, 2], d[0, 2], d[0, 1]])
 
 

@@ -44,7 +44,7 @@ def to_dict(p: Payload, fit: dict | None = None) -> dict:
                  "inertia_kg_m2": [[_nan_none(v) for v in row] for row in p.sigma["inertia_kg_m2"]]}
     out = {"format": FORMAT, "version": VERSION, "robot": p.robot, "method": p.method, **inertial_dict(p),
            "sigma": sigma, "identifiable": list(p.identifiable),
-           "urscript": None if p.info.get("mass_bound_kg") is not None else p.urscript()}   # a bound's mass is no tool's
+           "urscript": None if p.info.get("mass_bound_kg") is not None else p.urscript()}   # a bound's mass: none
     if fit:
         out["fit"] = fit
     if p.info.get("capsule"):
