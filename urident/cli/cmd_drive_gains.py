@@ -66,8 +66,6 @@ def run(args: argparse.Namespace) -> int:
     spec = load_robot(args.robot)
     payload = options.point_payload(args, spec)
     if args.log_signal not in (None, "current"):
-        from urident.errors import ConfigError
-
         raise ConfigError(f"--signal {args.log_signal}: drive gains are estimated from the motor "
                           "currents; leave --signal out or pass --signal current")
     args.log_signal = "current"  # the motor currents, whatever torques the logs also carry
