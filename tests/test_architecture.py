@@ -190,6 +190,16 @@ def test_no_import_cycles_in_urident_counting_deferred_imports():
     assert not cycles, "import cycles (deferred imports counted): " + "; ".join(" -> ".join(c) for c in cycles)
 
 
+def test_nothing_below_the_command_line_imports_it():
+    """The CLI is the top layer: it parses, calls the library and prints. No library module imports
+    it (deferred imports counted); only entry points (``__main__`` modules) may."""
+    graph = import_graph(ROOT, deferred=True)
+    upward = sorted(f"{m} -> {t}" for m, targets in graph.items() for t in targets
+                    if (t == "urident.cli" or t.startswith("urident.cli."))
+                    and not (m == "urident.cli" or m.startswith("urident.cli.") or m.endswith("__main__")))
+    assert not upward, "modules below urident.cli import it: " + "; ".join(upward)
+
+
 def test_no_private_names_imported_across_modules():
     found = private_imports(ROOT)
     assert not found, "private names imported across modules: " + "; ".join(found)

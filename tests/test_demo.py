@@ -47,7 +47,7 @@ def test_second_demo_does_not_clash(tmp_path):
     whose ports are free (a leftover controller keeps its own)."""
     import socket
 
-    from urident.demo import PORTS, free_loopback_address, new_run_directory
+    from urident.cli.demo import PORTS, free_loopback_address, new_run_directory
 
     first, second = new_run_directory(tmp_path), new_run_directory(tmp_path)
     assert first != second and first.is_dir() and second.is_dir()
@@ -84,7 +84,7 @@ def test_summary_sets_the_injected_effects_beside_the_findings():
     diagnosis' findings, with magnitudes on both sides."""
     from pathlib import Path
 
-    from urident.demo import DemoResult, compare_effects, summary
+    from urident.cli.demo import DemoResult, compare_effects, summary
 
     injected = ({"name": "stribeck", "joints": [1, 2], "static_friction_ratio": [1.3, 1.3]},
                 {"name": "current_offset", "joints": [4], "offset_a": [0.03]})

@@ -58,7 +58,7 @@ def test_servo_lag_stays_inside_the_tracking_monitor(robot, kind, request):
 @pytest.mark.parametrize("robot", available_robots())
 def test_validation_start_is_within_the_demos_approach_of_the_identification_start(robot):
     """`urident demo --robot R` runs both trajectories back to back: the validation start must be
-    within the demo's approach limit (approach.max_distance_rad = 3.2 in urident/demo.py) of where
+    within the demo's approach limit (approach.max_distance_rad = 3.2 in urident/cli/demo.py) of where
     identification ends (its start)."""
     ident = load_trajectory(EXPERIMENTS / f"{robot}_ident.yaml").trajectory
     valid = load_trajectory(EXPERIMENTS / f"{robot}_valid.yaml").trajectory

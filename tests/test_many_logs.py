@@ -10,7 +10,7 @@ import pytest
 
 from urident.cli.main import main
 from urident.errors import ConfigError
-from urident.logs.cli_args import expand_log_paths, logs_from_args
+from urident.cli.log_args import expand_log_paths, logs_from_args
 from urident.progress import Progress, progress_iter
 
 REPO = Path(__file__).resolve().parent.parent

@@ -78,7 +78,7 @@ def test_urident_run_records_the_declared_payload_and_reports_show_it(tmp_path):
     from urident.excitation import FourierTrajectory, Limits, trajectory_document, write_trajectory
     from urident.excitation.fourier import base_frequency
     from urident.logs import load_log
-    from urident.logs.cli_args import load_log_from_args
+    from urident.cli.log_args import load_log_from_args
     from urident.logs.sidecar import declared_payload
 
     host, start = "127.0.0.42", [0.0, -1.5708, 0.0, -1.5708, 0.0, 0.0]

@@ -37,7 +37,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--tf-prefix", dest="tf_prefix", default=None, type=options.tf_prefix,
                    help="prefix of the joint names, as the driver's tf_prefix (e.g. ur_)")
     options.add_overwrite_argument(p, "an existing bag directory")
-    from urident.logs import add_log_arguments
+    from urident.cli.log_args import add_log_arguments
 
     add_log_arguments(p)
     p.set_defaults(func=run)
@@ -85,7 +85,8 @@ def bag_effort_values(recording, spec, effort: str):
 
 def run(args: argparse.Namespace) -> int:
     from urident.errors import ConfigError
-    from urident.logs import load_log_from_args, write_bag
+    from urident.logs import write_bag
+    from urident.cli.log_args import load_log_from_args
     from urident.model import load_robot
 
     out = check_bag_output(args.bag, args.overwrite)

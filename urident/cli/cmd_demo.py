@@ -26,7 +26,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from urident.demo import run_demo
+    from urident.cli.demo import run_demo
 
     options.output_path("--out-root", args.out_root, overwrite=False, directory=True)
     robot = {"robot": args.robot} if args.robot else {}

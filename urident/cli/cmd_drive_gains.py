@@ -10,7 +10,7 @@ from urident.cli import options
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    from urident.logs import add_log_arguments
+    from urident.cli.log_args import add_log_arguments
 
     p = subparsers.add_parser(
         "drive-gains", help="estimate the joint drive gains [N·m/A] from runs without and with a known load",
@@ -49,8 +49,8 @@ def run(args: argparse.Namespace) -> int:
     from urident.ident.gains_file import save_gains
     from urident.ident.payload import check_wrist_motion
     from urident.ident.torque import DriveGainError, estimate_drive_gains, gain_problem
-    from urident.logs import load_log_from_args
-    from urident.logs.cli_args import refuse_same_logs
+    from urident.cli.log_args import load_log_from_args
+    from urident.cli.log_args import refuse_same_logs
     from urident.model import load_robot
 
     options.distinct_outputs(("--out", args.out), ("--json-out", args.json_out),

@@ -8,7 +8,7 @@ from urident.cli import options
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    from urident.logs import add_log_arguments
+    from urident.cli.log_args import add_log_arguments
 
     p = subparsers.add_parser(
         "export", help="write identified parameters as a MuJoCo (MJCF) or URDF model",
@@ -39,7 +39,7 @@ def run(args: argparse.Namespace) -> int:
     from urident.ident import load_params, predict_recordings
     from urident.ident.identify import check_compatible
     from urident.ident.urdf import check_exportable, write_urdf
-    from urident.logs import load_log_from_args
+    from urident.cli.log_args import load_log_from_args
     from urident.model import load_robot
     from urident.sim.mjcf import write_mjcf
     from urident.sim.terms import inexpressible_terms

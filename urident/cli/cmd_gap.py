@@ -72,8 +72,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="at most this many effects (stepwise selection, default 3; 30 with --sim)")
     p.add_argument("--seed", type=options.seed, default=0, help="bootstrap seed (default 0)")
     options.add_rerun_arguments(p, "residual maps and comparison")
-    from urident.logs import add_log_arguments
-    from urident.logs.cli_args import add_logs_from_argument
+    from urident.cli.log_args import add_log_arguments
+    from urident.cli.log_args import add_logs_from_argument
 
     add_log_arguments(p)
     add_logs_from_argument(p, "--ident-from", "ident_from", "identification logs")
@@ -82,7 +82,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _load_all(paths, args, rows_text, robot, what):
-    from urident.logs import load_log_from_args
+    from urident.cli.log_args import load_log_from_args
     from urident.progress import progress_iter
 
     return [load_log_from_args(path, args, robot=robot, rows=rows_text, say_signal=True)
@@ -108,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
     from urident.gap import GapConfig, diagnose, format_report
     from urident.errors import ConfigError
     from urident.gap.candidates import EFFECTS
-    from urident.logs.cli_args import expand_log_paths, logs_from_args
+    from urident.cli.log_args import expand_log_paths, logs_from_args
     from urident.model import load_robot
     from urident.progress import Working
 
@@ -185,7 +185,7 @@ def run(args: argparse.Namespace) -> int:
 def _refuse_reused(args, ident_paths, valid_paths) -> None:
     """A check log must be held out: the same data (content, by hash, and rows) as an
     identification or validation log is refused (another row range of the same file is fine)."""
-    from urident.logs.cli_args import expand_log_paths, refuse_same_logs
+    from urident.cli.log_args import expand_log_paths, refuse_same_logs
 
     rows = lambda r: r if r is not None else getattr(args, "log_rows", None)   # noqa: E731
     used = [(f"--ident {p}", p, rows(args.ident_rows)) for p in ident_paths]

@@ -97,8 +97,8 @@ def preprocess_config(args: argparse.Namespace, trim_default: bool = True):
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    from urident.logs import add_log_arguments
-    from urident.logs.cli_args import add_logs_from_argument
+    from urident.cli.log_args import add_log_arguments
+    from urident.cli.log_args import add_logs_from_argument
 
     p = subparsers.add_parser(
         "identify", help="identify dynamic parameters from logs",
@@ -184,8 +184,8 @@ _AUTO_CONFLICTS = (("coulomb", "--coulomb"), ("hold_velocity", "--hold-velocity"
 def run(args: argparse.Namespace) -> int:
     from urident import api
     from urident.errors import ConfigError
-    from urident.logs import load_log_from_args
-    from urident.logs.cli_args import logs_from_args
+    from urident.cli.log_args import load_log_from_args
+    from urident.cli.log_args import logs_from_args
     from urident.model import load_robot
     from urident.progress import progress_iter
 

@@ -29,7 +29,7 @@ def mass_range(text: str) -> tuple[float, float]:
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    from urident.logs import add_log_arguments
+    from urident.cli.log_args import add_log_arguments
 
     p = subparsers.add_parser(
         "payload", help="identify a tool's mass, centre of mass and inertia on an identified arm",
@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
     from urident.ident.identify import check_compatible
     from urident.ident.payload import check_same_motion, check_wrist_motion, estimate_payload, since_first_row
     from urident.ident.payload_file import save_payload
-    from urident.logs import load_log_from_args
+    from urident.cli.log_args import load_log_from_args
     from urident.model import load_robot
 
     options.distinct_outputs(("--out", args.out), ("--json-out", args.json_out),
@@ -88,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError("--unloaded-rows needs --unloaded LOG")
     if args.unloaded:
         rows = args.unloaded_rows or getattr(args, "log_rows", None)
-        from urident.logs.cli_args import refuse_same_logs
+        from urident.cli.log_args import refuse_same_logs
 
         refuse_same_logs([(f"--unloaded {p}", p, rows) for p in args.unloaded],
                          [(f"LOG {p}", p, getattr(args, "log_rows", None)) for p in args.logs],

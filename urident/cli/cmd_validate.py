@@ -11,7 +11,7 @@ from urident.cli import options
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     from urident.cli.cmd_identify import add_preprocess_arguments
-    from urident.logs import add_log_arguments
+    from urident.cli.log_args import add_log_arguments
 
     p = subparsers.add_parser(
         "validate", help="validate identified parameters on other logs",
@@ -40,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
     from urident import api
     from urident.cli.cmd_identify import preprocess_overrides
     from urident.ident import load_params
-    from urident.logs import load_log_from_args
+    from urident.cli.log_args import load_log_from_args
     from urident.model import load_robot
     from urident.progress import progress_iter
 

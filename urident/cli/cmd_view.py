@@ -29,7 +29,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--pose-rate", dest="pose_rate_hz", type=options.nonnegative_float, default=30.0,
                    metavar="HZ", help="rate of the 3-D robot poses (default 30 Hz; 0 = every sample)")
     from urident.cli.cmd_identify import add_preprocess_arguments
-    from urident.logs import add_log_arguments
+    from urident.cli.log_args import add_log_arguments
 
     add_preprocess_arguments(p, trim_default=False)
     options.add_payload_argument(p, "its torque adds to the arm's prediction")
@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     from urident.errors import ConfigError
     from urident.ident import (load_prediction_params, nominal_parameters, predict_recordings,
                                prediction_config)
-    from urident.logs import load_log_from_args
+    from urident.cli.log_args import load_log_from_args
     from urident.model import load_robot
     from urident.viz.blueprint import torque_blueprint
     from urident.viz.recording import close_recording

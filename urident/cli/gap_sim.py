@@ -43,7 +43,7 @@ def run_sim(args: argparse.Namespace, load_all, json_default) -> int:
     config = GapConfig(effects=args.effects or EFFECTS, **floor, cv_min_noise_ratio=args.cv_min_noise_ratio,
                        max_effects=args.max_effects or SIM_MAX_EFFECTS, seed=args.seed)
     drive_gains = None if args.drive_gains is None else np.array(args.drive_gains)
-    from urident.logs.cli_args import logs_from_args
+    from urident.cli.log_args import logs_from_args
 
     valid = load_all(logs_from_args(args.valid, args.valid_from, "--valid"), args, args.valid_rows,
                      spec.name, "validation")

@@ -1,7 +1,6 @@
 """Log format (CSV + YAML sidecar), crash-safe writer, and loaders for urident logs, ur_rtde
 recorder CSVs, headerless foreign CSVs and rosbag2 bags. The format is documented in ``logs/README.md``."""
 
-from .cli_args import add_log_arguments, load_log_from_args
 from .foreign import PRESETS, ColumnMap, ColumnMapError, parse_column_map
 from .reader import describe_dropped, known_robot_names, load_log, parse_row_range
 from .recording import Recording
@@ -19,14 +18,12 @@ __all__ = [
     "LogField",
     "LogWriter",
     "Recording",
-    "add_log_arguments",
     "describe_dropped",
     "field_columns",
     "is_bag",
     "load_bag",
     "known_robot_names",
     "load_log",
-    "load_log_from_args",
     "parse_column_map",
     "parse_row_range",
     "read_sidecar",

@@ -18,12 +18,12 @@ from typing import TextIO
 from urident.cli.options import checked, log_list_file, ros_topic, row_range
 from urident.errors import ConfigError, LogFormatError
 
-from .foreign import PRESETS, parse_column_map
-from .gaps import describe_gaps, recording_gaps
-from .reader import describe_dropped, load_log
-from .rosbag import is_bag
-from .sidecar import describe_declared_payload
-from .recording import Recording
+from urident.logs.foreign import PRESETS, parse_column_map
+from urident.logs.gaps import describe_gaps, recording_gaps
+from urident.logs.reader import describe_dropped, load_log
+from urident.logs.rosbag import is_bag
+from urident.logs.sidecar import describe_declared_payload
+from urident.logs.recording import Recording
 
 
 def add_log_arguments(parser: argparse.ArgumentParser) -> None:

@@ -26,7 +26,7 @@ import numpy as np
 from urident.errors import UridentError
 
 ROBOT = "ur5e"  # the default; any robot with an ident/valid pair in experiments/
-EXPERIMENTS = Path(__file__).resolve().parent.parent / "experiments"
+EXPERIMENTS = Path(__file__).resolve().parents[2] / "experiments"
 PORTS = (30004, 29999, 30003, 30002)
 EFFECTS_PRESET = "realistic"   # the unmodelled effects the demo's simulated controller runs
 
