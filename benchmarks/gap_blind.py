@@ -722,6 +722,10 @@ def main(argv=None) -> int:
     ap.add_argument("--only", metavar="EFFECT", choices=EFFECT_NAMES, default=None,
                     help="run only the drawn scenarios whose truth contains this effect (the others are "
                          "skipped, not redrawn: the indices stay those of the full run)")
+    ap.add_argument("--out-of-family", action="store_true",
+                    help="forms written from the physics literature, not the candidates' "
+                         "(benchmarks/gap_out_of_family.py): joint found, class accepted, silent misses, "
+                         "false alarms, shrink error")
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args(argv)
     if args.pair_timing:
@@ -735,6 +739,8 @@ def main(argv=None) -> int:
 
     spec = load_robot(args.robot)
     config = GapConfig() if args.min_shrink is None else GapConfig(min_shrink_pct=args.min_shrink)
+    if args.out_of_family:
+        return _out_of_family(spec, args, config)
     rows = []
     t0 = time.perf_counter()
     if args.from_rows:
@@ -795,6 +801,26 @@ def main(argv=None) -> int:
     if args.pair_timing and rows:
         print(f"UR5e {args.ident_duration:g} s + {args.duration:g} s pair at {args.rate:g} Hz: diagnosis "
               f"{timing['mean_wall_s']:.2f} s wall per scenario (target < {PAIR_TIMING_TARGET_S:g} s)")
+    print(json.dumps(summary))
+    return 0
+
+
+def _out_of_family(spec, args, config) -> int:
+    import gap_out_of_family as oof
+
+    rows = []
+    for i in range(args.first, args.first + args.scenarios):
+        row = oof.run_scenario(spec, i, args.seed, args.rate, args.duration, config)
+        rows.append(row)
+        found = ", ".join(f"{f['effect']}@{f['joint']} ({f['claim']}, {f['shrink_pct']:.1f} %)"
+                          for f in row["found"]) or "none"
+        truth = f"{row['form']}@{row['joint']} ({row['true_shrink_pct']:.1f} %)" if row["form"] else "none"
+        verdict = ("FALSE ALARM" if row["false_alarm"] else "ok") if not row["form"] else \
+            ("SILENT MISS" if row["silent_miss"] else ("ok" if row["class_accepted"] else "WRONG CLASS")
+             + ("" if row["matters"] else " (< 5 %)"))
+        print(f"[{i:3d}] truth {truth:38s} found {found:50s} beyond {row['beyond']} {verdict}", flush=True)
+    summary = oof.summarise(rows)
+    summary.update(seed=args.seed, robot=args.robot, rate_hz=args.rate, duration_s=args.duration)
     print(json.dumps(summary))
     return 0
 

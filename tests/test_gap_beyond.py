@@ -138,3 +138,26 @@ def test_a_pushed_validation_run_reports_the_push_names_nothing_and_its_json_con
     assert "Events" in format_report(res)
     jsonschema = pytest.importorskip("jsonschema")
     jsonschema.validate(doc, report_schema())
+
+
+def test_a_finding_whose_form_the_residual_contradicts_is_a_partial_explanation():
+    """After a Stribeck-like finding, a residual that still grows with speed (quadratic drag the
+    baseline's linear viscous term only partly takes) is left along the joint's velocity: the
+    finding is a partial explanation; white noise leaves nothing."""
+    from types import SimpleNamespace
+
+    from urident.gap.structure import form_left
+
+    rng = np.random.default_rng(4)
+    n = 6000
+    t = np.arange(n) / 200.0
+    qd = np.zeros((n, 6))
+    qd[:, 1] = 1.2 * np.sin(0.6 * t)
+    ctx = SimpleNamespace(qd=qd, tau_hat=np.zeros((n, 6)), n=n, data=SimpleNamespace(run_time=t))
+    drag = 3.0 * qd[:, 1] * np.abs(qd[:, 1])
+    drag -= qd[:, 1] * (qd[:, 1] @ drag) / (qd[:, 1] @ qd[:, 1])     # the baseline's viscous share
+    noise = rng.normal(0, 0.3, n)
+    left = form_left("stribeck", 1, noise + drag, ctx, 0.3, 3.0, 0.5)
+    assert left and left["axis"] == "velocity of joint 2" and left["shrink_pct"] > 10
+    assert form_left("stribeck", 1, noise, ctx, 0.3, 3.0, 0.5) is None
+    assert form_left("payload_error", 1, noise + drag, ctx, 0.3, 3.0, 0.5) is None   # no own axis

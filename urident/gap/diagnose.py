@@ -49,6 +49,24 @@ def joints_at_rest(qd) -> list[int]:
     return [int(j) for j in np.flatnonzero(share >= AT_REST_SHARE)]
 
 
+def claims(findings, final_r, ctx_v, config: GapConfig) -> list:
+    """Each finding as a ``cause`` when its form fits, else ``partial`` with what its form leaves
+    along its own axis (:func:`urident.gap.structure.form_left`) after all the findings."""
+    from dataclasses import replace
+
+    from urident.gap.significance import noise_sigma
+    from urident.gap.structure import form_left
+
+    sigma = noise_sigma(final_r)
+    out = []
+    for f in findings:
+        j = f.joint - 1
+        left = form_left(f.effect, j, final_r[:, j], ctx_v, float(sigma[j]), config.min_shrink_pct,
+                         config.cv_min_noise_ratio)
+        out.append(replace(f, claim="partial", remains=left) if left else f)
+    return out
+
+
 def diagnose(ident_recordings: Sequence, valid_recordings: Sequence, spec, *, params=None,
              drive_gains=None, config: GapConfig | None = None, preprocess=None,
              payload=None) -> GapResult:
@@ -105,6 +123,7 @@ def _diagnose_prepared(spec, ident: GapSet, valid: GapSet, params, config: GapCo
 
     findings, steps, confounds, current = select(scorer, pool, block, config, ctx_v, spec)
     final_r = current.residual
+    findings = claims(findings, final_r, ctx_v, config)
     where["unexplained"] = describe_unexplained(ctx_v, final_r, min_shrink_pct=config.min_shrink_pct,
                                                 noise_ratio=config.cv_min_noise_ratio)   # beyond the catalogue
     for ctx in (ctx_i, ctx_v):

@@ -36,6 +36,7 @@ import numpy as np
 from urident.gap.significance import noise_sigma
 
 LEVEL_WINDOW_S = 4.0     # [s] running median: the residual's local level
+LEVEL_RATE_HZ = 25.0     # [Hz] ... taken on samples this far apart
 CORE_Z = 5.0             # a core sample departs by more than this many robust spreads
 EDGE_Z = 3.0             # an event extends while it departs by more than this
 NOISE_FLOOR = 3.0        # the spread is at least this many white-noise torques
@@ -65,10 +66,19 @@ class Event:
                 "rms_nm": list(self.rms_nm), "kind": self.kind, "n_samples": self.stop - self.start}
 
 
-def _running_median(x: np.ndarray, width: int) -> np.ndarray:
+def _running_median(x: np.ndarray, width: int, step: int = 1) -> np.ndarray:
+    """(N, 6) running median of ``x`` over ``width`` samples, taken on every ``step``-th sample and
+    interpolated between them (the level of a residual changes over seconds: cost bounded)."""
     from scipy.ndimage import median_filter
 
-    return median_filter(x, size=(max(1, width) | 1, 1), mode="mirror")
+    step = max(1, int(step))
+    sub = x[::step]
+    med = median_filter(sub, size=(max(1, width // step) | 1, 1), mode="mirror")
+    if step == 1:
+        return med
+    at = np.arange(0, len(x), step)
+    grid = np.arange(len(x))
+    return np.stack([np.interp(grid, at, med[:, j]) for j in range(x.shape[1])], axis=1)
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -81,7 +91,7 @@ def departures(r: np.ndarray, fs: float, iterations: int = 3) -> tuple[np.ndarra
     (module doc). The spread is taken again without the stretches flagged so far (``iterations``
     times): pushes covering a third of a run would otherwise widen it."""
     r = np.asarray(r, float)
-    d = r - _running_median(r, int(round(LEVEL_WINDOW_S * fs)))
+    d = r - _running_median(r, int(round(LEVEL_WINDOW_S * fs)), int(fs // LEVEL_RATE_HZ))
     floor = NOISE_FLOOR * noise_sigma(r)
     out = np.zeros(r.shape, bool)
     for _ in range(iterations):

@@ -69,6 +69,8 @@ def format_report(res, top: int = 12) -> str:
                          f"RMS {x.rms_before_nm:.3f} -> {x.rms_after_nm:.3f} N·m "
                          f"({x.shrink_pct:.1f} % smaller), confidence {x.confidence}")
             lines.append(f"     where: {x.regime}")
+            if x.claim == "partial":
+                lines.append(f"     PARTIAL explanation, not the cause: {x.remains['text']}")
             if mag:
                 lines.append(f"     fitted: {mag}")
             if x.confounded_with:
