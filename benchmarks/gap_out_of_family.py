@@ -55,7 +55,7 @@ def draw(rng, form: str, joint: int) -> dict:
     elif form == "asymmetric_coulomb":
         p["delta_nm"] = float(rng.choice([-1, 1]) * (rng.uniform(1.5, 4) if big else rng.uniform(0.4, 1.0)))
     elif form == "lugre":
-        fc = float(rng.uniform(4, 8) if big else rng.uniform(1, 2))
+        fc = float(rng.uniform(1.5, 3) if big else rng.uniform(0.3, 0.8))   # a part of the arm's own
         p.update(fc=fc, fs=fc * float(rng.uniform(1.3, 1.8)), vs=float(rng.uniform(0.01, 0.04)),
                  sigma0=float(rng.uniform(2e4, 1e5)), sigma1=float(rng.uniform(50, 300)))
     elif form == "position_friction":

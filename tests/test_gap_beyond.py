@@ -161,3 +161,33 @@ def test_a_finding_whose_form_the_residual_contradicts_is_a_partial_explanation(
     assert left and left["axis"] == "velocity of joint 2" and left["shrink_pct"] > 10
     assert form_left("stribeck", 1, noise, ctx, 0.3, 3.0, 0.5) is None
     assert form_left("payload_error", 1, noise + drag, ctx, 0.3, 3.0, 0.5) is None   # no own axis
+
+
+def test_friction_growing_faster_than_linearly_is_named_not_stribeck():
+    from test_gap_diagnose import FAST, simulate, sines
+    from urident.gap import diagnose, format_report
+    from urident.model import load_robot
+
+    spec = load_robot("ur10e")
+    eff = "effects:\n  - name: quadratic_viscous\n    joints: [2]\n    coefficient_nm_s2: 6.0\n"
+    res = diagnose([simulate(spec, sines(3, vmax=1.0), eff, seed=5)],
+                   [simulate(spec, sines(4, vmax=1.0), eff, seed=6)], spec, config=FAST)
+    first = res.findings[0]
+    assert (first.effect, first.joint, first.claim) == ("quadratic_viscous", 2, "cause"), format_report(res)
+    assert first.magnitude["coefficient_nm_s2"] == pytest.approx(6.0, rel=0.15)
+
+
+def test_a_ripple_at_twice_the_gear_ratio_is_a_candidate():
+    """Cogging at 2·101 cycles per revolution (beyond the 150 of the angle-domain map): the
+    identification residual's clear peak up to the angle-Nyquist becomes a ripple candidate."""
+    from test_gap_diagnose import FAST, simulate, sines
+    from urident.gap import diagnose, format_report
+    from urident.model import load_robot
+
+    spec = load_robot("ur10e")
+    eff = ("effects:\n  - name: position_ripple\n    joints: [3]\n    amplitude_nm: 0.6\n"
+           "    harmonic: 202\n    mode: torque\n")
+    res = diagnose([simulate(spec, sines(7, duration=12.0, vmax=0.4), eff, seed=7, rate=250.0)],
+                   [simulate(spec, sines(8, duration=12.0, vmax=0.4), eff, seed=8, rate=250.0)], spec, config=FAST)
+    first = res.findings[0]
+    assert (first.effect, first.joint, first.magnitude["harmonic"]) == ("position_ripple", 3, 202), format_report(res)

@@ -36,6 +36,7 @@ load_friction          the run's link-torque distribution |τ̂_link| (from the 
 thermal_drift          the run's warm-up: 1 − exp(−t/τ_w) over its own duration (fitted τ_w and
                        amplitude), minutes elapsed (time variant), or its logged temperature
                        history (temperature variants), times q̇ and sign(q̇)
+quadratic_viscous      its speed: q̇·|q̇|
 position_ripple        the angles it visits: sin/cos(k·q) (× sign(q̇) for friction ripple)
 current_delay          how fast its torque changes, dτ̂/dt, and the model torque shifted by
                        the delay behind the fit, τ̂(t − d) − τ̂(t): the column's misfit there

@@ -84,7 +84,7 @@ def format_report(res, top: int = 12) -> str:
             lines.append(f"  joint {u['joint']}: RMS {u['rms_nm']:.3f} N·m, {u['noise_ratio']:.1f} x its "
                          f"white-noise torque ({u['noise_nm']:.3f} N·m); structured part "
                          f"{u['structured_rms_nm']:.3f} N·m")
-            for st in u.get("structure", []):
+            for st in u.get("structure", [])[:3]:     # the JSON has them all
                 lines.append(f"     structure: {st['text']}")
             for text in u["regimes"] or ["spread over all regimes"]:
                 lines.append(f"     where: {text}")

@@ -74,10 +74,16 @@ def angle_harmonics(r: np.ndarray, q: np.ndarray, qd: np.ndarray, fs: float, sig
             k = int(ks[i])
             if any(abs(k - o) <= width for o in taken):
                 continue
+            # the binned spectrum places a wide peak to ±1: the exact fit decides within it
+            best = None
+            for kk in range(max(k_min, k - width), min(k_max, k + width) + 1):
+                a = np.column_stack([np.sin(kk * qm), np.cos(kk * qm)])
+                beta, *_ = np.linalg.lstsq(a, y, rcond=None)
+                f_kk = a @ beta
+                if best is None or f_kk @ f_kk > best[1] @ best[1]:
+                    best = (kk, f_kk)
+            k, fit = best
             taken.append(k)
-            a = np.column_stack([np.sin(k * qm), np.cos(k * qm)])
-            beta, *_ = np.linalg.lstsq(a, y, rcond=None)
-            fit = a @ beta
             out.append({"kind": "angle_harmonic", "mode": mode, "k": k,
                         "fitted_rms_nm": float(np.sqrt(np.mean(fit ** 2))),
                         "explained_ss": float(fit @ fit) * stride, "n": n * stride,
@@ -171,6 +177,7 @@ def describe(f: dict) -> str:
 #: The axis along which each effect's form is checked after the findings (its own variable): the
 #: joint's signed velocity for friction effects, the model torque for a gain, time for a drift.
 FORM_AXIS = {"stribeck": "velocity", "load_friction": "velocity", "presliding": "velocity",
+             "quadratic_viscous": "velocity",
              "thermal_drift": "time", "torque_constant_error": "torque", "current_delay": "velocity",
              "current_offset": "velocity"}
 #: Bins per sign of the velocity axis (quantiles of the moving samples), and of the other axes.

@@ -1,5 +1,6 @@
 """Friction effects the paper's model (viscous + Coulomb) does not have: Stribeck/static
-friction, load-dependent friction, temperature drift, position-dependent ripple."""
+friction, load-dependent friction, temperature drift, position-dependent ripple, friction growing
+faster than linearly with speed."""
 
 from __future__ import annotations
 
@@ -142,3 +143,19 @@ class PositionRipple(Effect):
         if self._friction:
             out = out * self.context.sign(qd)
         return out
+
+
+class QuadraticViscous(Effect):
+    name = "quadratic_viscous"
+    summary = "friction growing faster than linearly with speed (lubricant drag): c₂·q̇·|q̇|"
+    details = ("τ = c₂·q̇·|q̇|: at high speed the gear's lubricant drag rises above the linear "
+               "viscous law of the model.")
+    params = (
+        Param("coefficient_nm_s2", "joint", 2.0, "c₂ [N·m·s²/rad²]", low=0.0),
+    )
+
+    def reset(self) -> None:
+        self._c2 = self.value("coefficient_nm_s2")
+
+    def _stateless_torque(self, t, q, qd, qdd, tau_model, temperatures, link_extra):
+        return self._c2 * qd * np.abs(qd)
