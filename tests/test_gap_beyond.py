@@ -191,3 +191,27 @@ def test_a_ripple_at_twice_the_gear_ratio_is_a_candidate():
                    [simulate(spec, sines(8, duration=12.0, vmax=0.4), eff, seed=8, rate=250.0)], spec, config=FAST)
     first = res.findings[0]
     assert (first.effect, first.joint, first.magnitude["harmonic"]) == ("position_ripple", 3, 202), format_report(res)
+
+
+@pytest.mark.skipif(not (__import__("shared_data").UR10E_DATA / "ur-20_01_22-push_pose_2.csv").is_file(),
+                    reason="needs the shared UR10e recordings")
+def test_the_real_pushed_run_gives_events_no_effect_and_a_conforming_json():
+    from shared_data import UR10E_DATA
+
+    from urident.gap import diagnose
+    from urident.logs import load_log
+    from urident.model import load_robot
+
+    spec = load_robot("ur10e")
+    ident = load_log(UR10E_DATA / "ur-20_02_10-30sec_12harm.csv", format="dynamic_calibration",
+                     robot="ur10e", rows=(635, 3510))
+    pushed = load_log(UR10E_DATA / "ur-20_01_22-push_pose_2.csv", format="dynamic_calibration", robot="ur10e")
+    from test_gap_diagnose import FAST
+
+    res = diagnose([ident], [pushed], spec, config=FAST)
+    kinds = {e.kind for e in res.events}
+    assert len(res.events) >= 4 and kinds == {"external_contact"}
+    assert max(max(abs(p) for p in e.peak_nm) for e in res.events) > 30
+    assert res.findings == []                 # nothing named from the pushes or the hold levels
+    doc = json.loads(json.dumps(res.as_dict(), allow_nan=False))
+    assert errors(doc) == [] and doc["where"]["at_rest"]["joints"] == [1, 2, 3, 4, 5, 6]
