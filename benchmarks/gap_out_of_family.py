@@ -230,9 +230,12 @@ def summarise(rows: list[dict]) -> dict:
     matter = [r for r in eff if r["matters"]]
     free = [r for r in rows if not r["form"]]
     errs = [r["shrink_error_pts"] for r in eff if r["shrink_error_pts"] is not None]
+    elsewhere = sum(1 for r in eff for f in r["found"] if f["joint"] != r["joint"])
     share = lambda xs, key: (sum(bool(x[key]) for x in xs), len(xs))   # noqa: E731
     return {"scenarios": len(rows), "with_effect": len(eff), "that_matter_5pct": len(matter),
             "joint_found": share(matter, "joint_found"), "class_accepted": share(matter, "class_accepted"),
             "silent_misses": share(matter, "silent_miss"), "false_alarms": share(free, "false_alarm"),
             "mean_shrink_error_pts": float(np.mean(errs)) if errs else None,
+            "findings_on_other_joints": elsewhere,
+            "findings": sum(len(r["found"]) for r in eff),
             "mean_diagnosis_s": float(np.mean([r["diagnosis_s"] for r in rows])) if rows else None}
