@@ -18,6 +18,8 @@ from __future__ import annotations
 
 from typing import Sequence
 
+import numpy as np
+
 from urident.gap.bootstrap import default_block_length
 from urident.gap.candidates import families
 from urident.gap.config import GapConfig
@@ -43,8 +45,6 @@ AT_REST_REASON = ("the joint barely moves on the validation run: its friction at
 def joints_at_rest(qd) -> list[int]:
     """0-based joints whose velocity stays below :data:`AT_REST_RAD_S` on at least
     :data:`AT_REST_SHARE` of the samples ``qd`` (N, 6)."""
-    import numpy as np
-
     share = np.mean(np.abs(np.asarray(qd, float)) < AT_REST_RAD_S, axis=0)
     return [int(j) for j in np.flatnonzero(share >= AT_REST_SHARE)]
 

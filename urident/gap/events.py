@@ -7,7 +7,8 @@ appears for a while, many times that spread above the residual's local level, th
 
 * local level m: running median of the residual over :data:`LEVEL_WINDOW_S` (a push of a second or
   two does not move it; a drift or a friction change does);
-* spread s: 1.4826·MAD of r − m over the whole run, at least the joint's white-noise torque
+* spread s: 1.4826·MAD of r − m over the whole run without the stretches flagged so far (taken
+  again until they settle), at least the joint's white-noise torque
   (:func:`urident.gap.significance.noise_sigma`) times :data:`NOISE_FLOOR`;
 * z = |r − m| / s; a sample is a *core* sample on the joint when z > :data:`CORE_Z`, and the stretch
   around a core extends while z > :data:`EDGE_Z` (hysteresis).
@@ -15,13 +16,17 @@ appears for a while, many times that spread above the residual's local level, th
 Stretches of any joint are united, those closer than :data:`MERGE_S` merged, and a stretch is an
 event when it lasts at least :data:`MIN_DURATION_S` and holds at least :data:`MIN_CORE_S` of core
 samples, on joints whose departure peaks at :data:`MIN_PEAK_NOISE` white-noise torques or more.
-Why these figures: a bounded effect (a sinusoid, a friction law) never reaches 6× its
-MAD-scale; the catalogue's short spikes (a delay's or Stribeck's bump at a velocity reversal: a few
+Why these figures: a bounded effect (a sinusoid, a friction law) stays within about 1.5× its
+MAD-scale, far below 5; the catalogue's short spikes (a delay's or Stribeck's bump at a velocity reversal: a few
 tens of ms) stay under the duration rule (docs/gap-calibration.md).
 
 Before that, the columns of the smooth effects that leave a short bump at every velocity reversal
 (:func:`smooth_basis`) are fitted per joint and taken out: a bump that repeats with the motion is
 an effect, not an event.
+
+Kinds: ``stall`` (the arm's speed in the event below :data:`STALL_RATIO` of its speed in the
+0.5 s before, and it was moving), ``impact`` (shorter than :data:`IMPACT_S`), else
+``external_contact``.
 
 The events' samples are set aside: the effect fits, the scores, the maps and the figures of the
 diagnosis use the rest of the validation run (:func:`without_events`).
