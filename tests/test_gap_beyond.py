@@ -215,3 +215,18 @@ def test_the_real_pushed_run_gives_events_no_effect_and_a_conforming_json():
     assert res.findings == []                 # nothing named from the pushes or the hold levels
     doc = json.loads(json.dumps(res.as_dict(), allow_nan=False))
     assert errors(doc) == [] and doc["where"]["at_rest"]["joints"] == [1, 2, 3, 4, 5, 6]
+
+
+def test_friction_driven_by_a_neighbours_load_is_named_with_its_neighbour():
+    from test_gap_diagnose import FAST, simulate, sines
+    from urident.gap import diagnose, format_report
+    from urident.model import load_robot
+
+    spec = load_robot("ur10e")
+    eff = "effects:\n  - name: neighbour_load_friction\n    joints: [2]\n    coefficient: 0.05\n    neighbour: 3\n"
+    res = diagnose([simulate(spec, sines(3), eff, seed=5)], [simulate(spec, sines(4), eff, seed=6)], spec,
+                   config=FAST)
+    first = res.findings[0]
+    assert (first.effect, first.joint, first.magnitude["neighbour_joint"]) == ("neighbour_load_friction", 2, 3), \
+        format_report(res)
+    assert first.magnitude["coefficient"] == pytest.approx(0.05, rel=0.15)

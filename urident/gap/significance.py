@@ -147,7 +147,7 @@ def plausible(c: Candidate, beta: np.ndarray) -> bool:
     negative: a modelled payload removed) with its centre within 0.5 m of the tool point.
     Other effects may have either sign."""
     b = np.asarray(beta, float)
-    if c.effect in ("stribeck", "load_friction", "presliding", "quadratic_viscous"):
+    if c.effect in ("stribeck", "load_friction", "presliding", "quadratic_viscous", "neighbour_load_friction"):
         return bool(b[0] > 0)
     if c.effect in ("current_delay", "joint_elasticity"):
         return bool(b[0] < 0)

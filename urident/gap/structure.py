@@ -177,7 +177,7 @@ def describe(f: dict) -> str:
 #: The axis along which each effect's form is checked after the findings (its own variable): the
 #: joint's signed velocity for friction effects, the model torque for a gain, time for a drift.
 FORM_AXIS = {"stribeck": "velocity", "load_friction": "velocity", "presliding": "velocity",
-             "quadratic_viscous": "velocity",
+             "quadratic_viscous": "velocity", "neighbour_load_friction": "velocity",
              "thermal_drift": "time", "torque_constant_error": "torque", "current_delay": "velocity",
              "current_offset": "velocity"}
 #: Bins per sign of the velocity axis (quantiles of the moving samples), and of the other axes.
