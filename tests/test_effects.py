@@ -64,7 +64,8 @@ def stepped(es, t, q, qd, qdd, tau, temps, current=None):
 def test_catalogue_names_are_the_public_interface():
     assert EFFECT_NAMES == ("stribeck", "load_friction", "thermal_drift", "position_ripple",
                             "current_delay", "torque_constant_error", "current_offset",
-                            "payload_error", "joint_elasticity")
+                            "payload_error", "joint_elasticity", "quadratic_viscous",
+                            "neighbour_load_friction")
     for entry in catalogue():
         assert entry.summary and "\n" not in entry.summary
         assert entry.params
@@ -322,6 +323,8 @@ ALL_EFFECTS = effects_text(
     "{name: current_delay, joints: [4], delay_s: 0}",
     "{name: torque_constant_error, gain_factor: 0.95}",
     "{name: current_offset, offset_a: [0.1, -0.1, 0.05, 0, 0.02, -0.03]}",
+    "{name: quadratic_viscous, joints: [2, 5], coefficient_nm_s2: 3.0}",
+    "{name: neighbour_load_friction, joints: [1, 2], coefficient: 0.03, neighbour: [2, 3]}",
 )
 
 
@@ -331,7 +334,7 @@ def test_hook_form_equals_offline_form(spec, name):
     text = effects_text(*[line.strip()[2:] for line in ALL_EFFECTS.splitlines()[1:]
                           if f"name: {name}," in line or line.strip().endswith(f"name: {name}}}")])
     es = load_effects(parse_effects_text(text), spec=spec)
-    assert es.names == (name,) and len(config.entries) == 11
+    assert es.names == (name,) and len(config.entries) == 13
     t, q, qd, qdd, tau, temps = run_arrays(spec, n=250, seed=3)
     current = tau / spec.drive_gains
     offline_torque = es.offline_extra_torque(t, q, qd, qdd, tau, temps)

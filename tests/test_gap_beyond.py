@@ -138,3 +138,95 @@ def test_a_pushed_validation_run_reports_the_push_names_nothing_and_its_json_con
     assert "Events" in format_report(res)
     jsonschema = pytest.importorskip("jsonschema")
     jsonschema.validate(doc, report_schema())
+
+
+def test_a_finding_whose_form_the_residual_contradicts_is_a_partial_explanation():
+    """After a Stribeck-like finding, a residual that still grows with speed (quadratic drag the
+    baseline's linear viscous term only partly takes) is left along the joint's velocity: the
+    finding is a partial explanation; white noise leaves nothing."""
+    from types import SimpleNamespace
+
+    from urident.gap.structure import form_left
+
+    rng = np.random.default_rng(4)
+    n = 6000
+    t = np.arange(n) / 200.0
+    qd = np.zeros((n, 6))
+    qd[:, 1] = 1.2 * np.sin(0.6 * t)
+    ctx = SimpleNamespace(qd=qd, tau_hat=np.zeros((n, 6)), n=n, data=SimpleNamespace(run_time=t))
+    drag = 3.0 * qd[:, 1] * np.abs(qd[:, 1])
+    drag -= qd[:, 1] * (qd[:, 1] @ drag) / (qd[:, 1] @ qd[:, 1])     # the baseline's viscous share
+    noise = rng.normal(0, 0.3, n)
+    left = form_left("stribeck", 1, noise + drag, ctx, 0.3, 3.0, 0.5)
+    assert left and left["axis"] == "velocity of joint 2" and left["shrink_pct"] > 10
+    assert form_left("stribeck", 1, noise, ctx, 0.3, 3.0, 0.5) is None
+    assert form_left("payload_error", 1, noise + drag, ctx, 0.3, 3.0, 0.5) is None   # no own axis
+
+
+def test_friction_growing_faster_than_linearly_is_named_not_stribeck():
+    from test_gap_diagnose import FAST, simulate, sines
+    from urident.gap import diagnose, format_report
+    from urident.model import load_robot
+
+    spec = load_robot("ur10e")
+    eff = "effects:\n  - name: quadratic_viscous\n    joints: [2]\n    coefficient_nm_s2: 6.0\n"
+    res = diagnose([simulate(spec, sines(3, vmax=1.0), eff, seed=5)],
+                   [simulate(spec, sines(4, vmax=1.0), eff, seed=6)], spec, config=FAST)
+    first = res.findings[0]
+    assert (first.effect, first.joint, first.claim) == ("quadratic_viscous", 2, "cause"), format_report(res)
+    assert first.magnitude["coefficient_nm_s2"] == pytest.approx(6.0, rel=0.15)
+
+
+def test_a_ripple_at_twice_the_gear_ratio_is_a_candidate():
+    """Cogging at 2·101 cycles per revolution (beyond the 150 of the angle-domain map): the
+    identification residual's clear peak up to the angle-Nyquist becomes a ripple candidate."""
+    from test_gap_diagnose import FAST, simulate, sines
+    from urident.gap import diagnose, format_report
+    from urident.model import load_robot
+
+    spec = load_robot("ur10e")
+    eff = ("effects:\n  - name: position_ripple\n    joints: [3]\n    amplitude_nm: 0.6\n"
+           "    harmonic: 202\n    mode: torque\n")
+    res = diagnose([simulate(spec, sines(7, duration=12.0, vmax=0.4), eff, seed=7, rate=250.0)],
+                   [simulate(spec, sines(8, duration=12.0, vmax=0.4), eff, seed=8, rate=250.0)], spec, config=FAST)
+    first = res.findings[0]
+    assert (first.effect, first.joint, first.magnitude["harmonic"]) == ("position_ripple", 3, 202), format_report(res)
+
+
+@pytest.mark.skipif(not (__import__("shared_data").UR10E_DATA / "ur-20_01_22-push_pose_2.csv").is_file(),
+                    reason="needs the shared UR10e recordings")
+def test_the_real_pushed_run_gives_events_no_effect_and_a_conforming_json():
+    from shared_data import UR10E_DATA
+
+    from urident.gap import diagnose
+    from urident.logs import load_log
+    from urident.model import load_robot
+
+    spec = load_robot("ur10e")
+    ident = load_log(UR10E_DATA / "ur-20_02_10-30sec_12harm.csv", format="dynamic_calibration",
+                     robot="ur10e", rows=(635, 3510))
+    pushed = load_log(UR10E_DATA / "ur-20_01_22-push_pose_2.csv", format="dynamic_calibration", robot="ur10e")
+    from test_gap_diagnose import FAST
+
+    res = diagnose([ident], [pushed], spec, config=FAST)
+    kinds = {e.kind for e in res.events}
+    assert len(res.events) >= 4 and kinds == {"external_contact"}
+    assert max(max(abs(p) for p in e.peak_nm) for e in res.events) > 30
+    assert res.findings == []                 # nothing named from the pushes or the hold levels
+    doc = json.loads(json.dumps(res.as_dict(), allow_nan=False))
+    assert errors(doc) == [] and doc["where"]["at_rest"]["joints"] == [1, 2, 3, 4, 5, 6]
+
+
+def test_friction_driven_by_a_neighbours_load_is_named_with_its_neighbour():
+    from test_gap_diagnose import FAST, simulate, sines
+    from urident.gap import diagnose, format_report
+    from urident.model import load_robot
+
+    spec = load_robot("ur10e")
+    eff = "effects:\n  - name: neighbour_load_friction\n    joints: [2]\n    coefficient: 0.05\n    neighbour: 3\n"
+    res = diagnose([simulate(spec, sines(3), eff, seed=5)], [simulate(spec, sines(4), eff, seed=6)], spec,
+                   config=FAST)
+    first = res.findings[0]
+    assert (first.effect, first.joint, first.magnitude["neighbour_joint"]) == ("neighbour_load_friction", 2, 3), \
+        format_report(res)
+    assert first.magnitude["coefficient"] == pytest.approx(0.05, rel=0.15)

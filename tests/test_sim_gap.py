@@ -160,6 +160,9 @@ def test_gap_sim_names_the_missing_drive_terms_and_mujoco_measures_the_written_m
     assert main(["gap", "--robot", "ur5", "--sim", str(bare), "--valid", str(VALID), "--write-sim", str(out),
                  "--json-out", str(js)]) == 0
     doc = json.loads(js.read_text())
+    from urident.gap.schema import errors
+
+    assert errors(doc) == []                  # the shipped schema: no NaN, None, infinity
     first = doc["findings"][0]
     assert first["effect"] in ("frictionloss", "damping", "armature") and first["expressible"] is True
     for f in doc["findings"]:

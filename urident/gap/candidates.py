@@ -11,25 +11,28 @@ all joints: payload_error), fitted in one mode:
 
 Columns (on the rows of joint j; ε the model's tanh slope, s = tanh(q̇_j/ε)):
 
-=====================  =============================================================================
-stribeck               exp(−(q̇_j/v_s)²)·s, v_s on a grid
-load_friction          |τ̂_link,j|·s
-thermal_drift          x·q̇_j and x·s with x = time since the start of the run [min], a warm-up
-                       curve 1 − exp(−t/τ_w) (τ_w on a grid), the joint temperature's change
-                       since the start, or its difference to the identification logs' mean
-                       temperature
-position_ripple        sin(k·q_j), cos(k·q_j) (mode torque) or the same × s (mode friction), k = 2-4
-                       and the peaks of the angle-domain spectrum of the identification residual
-current_delay          dτ̂_j/dt (coefficient −d)
-torque_constant_error  τ̂_j (coefficient 1/gain_factor − 1)
-current_offset         1 (coefficient the offset in N·m)
-payload_error          all joints: the torque of 1 kg at the tool point, and the three first-moment
-                       columns m·ρ of body 6 (mass and centre-of-mass shift)
-joint_elasticity       d²τ̂_link,j/dt² (coefficient −J/k)
-presliding             z_j − s, z the normalised Dahl state driven by the integrated velocity
-                       (presliding distance δ on a grid): holding friction that keeps the sign
-                       and size of the motion before a stop, where tanh(q̇/ε) falls to 0
-=====================  =============================================================================
+=======================  =============================================================================
+stribeck                 exp(−(q̇_j/v_s)²)·s, v_s on a grid
+load_friction            |τ̂_link,j|·s
+thermal_drift            x·q̇_j and x·s with x = time since the start of the run [min], a warm-up
+                         curve 1 − exp(−t/τ_w) (τ_w on a grid), the joint temperature's change
+                         since the start, or its difference to the identification logs' mean
+                         temperature
+position_ripple          sin(k·q_j), cos(k·q_j) (mode torque) or the same × s (mode friction), k = 2-4,
+                         the peaks of the angle-domain spectrum of the identification residual and
+                         its clear peaks up to the samples' angle-Nyquist (urident.gap.structure)
+current_delay            dτ̂_j/dt (coefficient −d)
+torque_constant_error    τ̂_j (coefficient 1/gain_factor − 1)
+current_offset           1 (coefficient the offset in N·m)
+payload_error            all joints: the torque of 1 kg at the tool point, and the three first-moment
+                         columns m·ρ of body 6 (mass and centre-of-mass shift)
+joint_elasticity         d²τ̂_link,j/dt² (coefficient −J/k)
+quadratic_viscous        q̇_j·|q̇_j| (friction growing faster than linearly with speed)
+neighbour_load_friction  |τ̂_link,k|·s, k = j ± 1: a bearing carrying a neighbour's link moment
+presliding               z_j − s, z the normalised Dahl state driven by the integrated velocity
+                         (presliding distance δ on a grid): holding friction that keeps the sign
+                         and size of the motion before a stop, where tanh(q̇/ε) falls to 0
+=======================  =============================================================================
 
 ``presliding`` is a diagnosis-only candidate: the simulator's catalogue has no such effect, and no
 simulator model format can express it (``urident.gap.sim_baseline.EXPRESSIBLE`` lacks it).
@@ -118,6 +121,10 @@ class Candidate:
             out.update(extra_static_friction_nm=float(b[0]), stribeck_velocity_rad_s=self.settings["vs"])
         elif e == "load_friction":
             out.update(coefficient=float(b[0]))
+        elif e == "quadratic_viscous":
+            out.update(coefficient_nm_s2=float(b[0]))
+        elif e == "neighbour_load_friction":
+            out.update(coefficient=float(b[0]), neighbour_joint=self.settings["neighbour"] + 1)
         elif e == "thermal_drift":
             out.update(drift_variable=self.variant, viscous_change_nm_s_per_unit=float(b[0]),
                        coulomb_change_nm_per_unit=float(b[1]))
@@ -226,6 +233,19 @@ def current_delay(j: int, mode: str = "ident") -> Candidate:
     return _joint("current_delay", j, "", mode, ("dtau/dt",), lambda ctx: [ctx.dtau[:, j]])
 
 
+def quadratic_viscous(j: int, mode: str = "ident") -> Candidate:
+    return _joint("quadratic_viscous", j, "", mode, ("qd*|qd|",),
+                  lambda ctx: [features.quadratic_viscous(ctx.qd[:, j])])
+
+
+def neighbour_load_friction(j: int, k: int, mode: str = "ident") -> Candidate:
+    """Friction of joint ``j`` driven by the load of the neighbour joint ``k`` (0-based)."""
+    def cols(ctx):
+        return [features.load_friction(ctx.tau_link[:, k], ctx.sign()[:, j])]
+    return _joint("neighbour_load_friction", j, f"load of joint {k + 1}", mode, ("|tau_link,k|*sign(qd)",),
+                  cols, {"neighbour": k})
+
+
 def torque_constant_error(j: int, mode: str = "ident") -> Candidate:
     return _joint("torque_constant_error", j, "", mode, ("tau_hat",), lambda ctx: [ctx.tau_hat[:, j]])
 
@@ -287,6 +307,7 @@ def families(spec, ident: SetContext, valid: SetContext, effects=EFFECTS, ripple
     """Every (effect, joint, mode) with its variants; the diagnosis keeps, per family, the variant
     that fits the identification data best (the validation data in CV mode)."""
     from urident.gap.maps import angle_spectrum
+    from urident.gap.structure import angle_harmonics
 
     out: list[list[Candidate]] = []
     have_temp = ident.data.temperature is not None and valid.data.temperature is not None
@@ -312,13 +333,22 @@ def families(spec, ident: SetContext, valid: SetContext, effects=EFFECTS, ripple
                             fam += [thermal_drift(j, "temperature_abs", mode, t_ref)]
                 elif e == "position_ripple":
                     spec_j = angle_spectrum(r_id[:, j], ident.q[:, j], ident.qd[:, j], ident.friction_eps)
-                    # low flexspline harmonics always, plus the spectrum's peaks
-                    ks_t = sorted(set(LOW_HARMONICS) | set(spec_j.peaks(ripple_peaks)))
-                    ks_f = sorted(set(LOW_HARMONICS) | set(spec_j.peaks(ripple_peaks, friction=True)))
+                    # low flexspline harmonics always, plus the spectrum's peaks, and the clear
+                    # peaks up to the samples' angle-Nyquist (a gear harmonic such as 2·101)
+                    fast = angle_harmonics(r_id[:, j], ident.q[:, j], ident.qd[:, j],
+                                           ident.data.sample_rate, ident.sign()[:, j], ripple_peaks)
+                    ks_t = sorted(set(LOW_HARMONICS) | set(spec_j.peaks(ripple_peaks))
+                                  | {h["k"] for h in fast if h["mode"] == "torque"})
+                    ks_f = sorted(set(LOW_HARMONICS) | set(spec_j.peaks(ripple_peaks, friction=True))
+                                  | {h["k"] for h in fast if h["mode"] == "friction"})
                     fam = [position_ripple(j, k, "torque", mode) for k in ks_t]
                     fam += [position_ripple(j, k, "friction", mode) for k in ks_f]
                 elif e == "current_delay":
                     fam = [current_delay(j, mode)]
+                elif e == "quadratic_viscous":
+                    fam = [quadratic_viscous(j, mode)]
+                elif e == "neighbour_load_friction":
+                    fam = [neighbour_load_friction(j, k, mode) for k in (j - 1, j + 1) if 0 <= k < 6]
                 elif e == "torque_constant_error":
                     fam = [torque_constant_error(j, mode)]
                 elif e == "current_offset":

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 from typing import Sequence
 
+import numpy as np
+
 from urident.gap.bootstrap import default_block_length
 from urident.gap.candidates import families
 from urident.gap.config import GapConfig
@@ -43,10 +45,26 @@ AT_REST_REASON = ("the joint barely moves on the validation run: its friction at
 def joints_at_rest(qd) -> list[int]:
     """0-based joints whose velocity stays below :data:`AT_REST_RAD_S` on at least
     :data:`AT_REST_SHARE` of the samples ``qd`` (N, 6)."""
-    import numpy as np
-
     share = np.mean(np.abs(np.asarray(qd, float)) < AT_REST_RAD_S, axis=0)
     return [int(j) for j in np.flatnonzero(share >= AT_REST_SHARE)]
+
+
+def claims(findings, final_r, ctx_v, config: GapConfig) -> list:
+    """Each finding as a ``cause`` when its form fits, else ``partial`` with what its form leaves
+    along its own axis (:func:`urident.gap.structure.form_left`) after all the findings."""
+    from dataclasses import replace
+
+    from urident.gap.significance import noise_sigma
+    from urident.gap.structure import form_left
+
+    sigma = noise_sigma(final_r)
+    out = []
+    for f in findings:
+        j = f.joint - 1
+        left = form_left(f.effect, j, final_r[:, j], ctx_v, float(sigma[j]), config.min_shrink_pct,
+                         config.cv_min_noise_ratio)
+        out.append(replace(f, claim="partial", remains=left) if left else f)
+    return out
 
 
 def diagnose(ident_recordings: Sequence, valid_recordings: Sequence, spec, *, params=None,
@@ -105,6 +123,7 @@ def _diagnose_prepared(spec, ident: GapSet, valid: GapSet, params, config: GapCo
 
     findings, steps, confounds, current = select(scorer, pool, block, config, ctx_v, spec)
     final_r = current.residual
+    findings = claims(findings, final_r, ctx_v, config)
     where["unexplained"] = describe_unexplained(ctx_v, final_r, min_shrink_pct=config.min_shrink_pct,
                                                 noise_ratio=config.cv_min_noise_ratio)   # beyond the catalogue
     for ctx in (ctx_i, ctx_v):

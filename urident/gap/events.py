@@ -7,7 +7,8 @@ appears for a while, many times that spread above the residual's local level, th
 
 * local level m: running median of the residual over :data:`LEVEL_WINDOW_S` (a push of a second or
   two does not move it; a drift or a friction change does);
-* spread s: 1.4826·MAD of r − m over the whole run, at least the joint's white-noise torque
+* spread s: 1.4826·MAD of r − m over the whole run without the stretches flagged so far (taken
+  again until they settle), at least the joint's white-noise torque
   (:func:`urident.gap.significance.noise_sigma`) times :data:`NOISE_FLOOR`;
 * z = |r − m| / s; a sample is a *core* sample on the joint when z > :data:`CORE_Z`, and the stretch
   around a core extends while z > :data:`EDGE_Z` (hysteresis).
@@ -15,13 +16,17 @@ appears for a while, many times that spread above the residual's local level, th
 Stretches of any joint are united, those closer than :data:`MERGE_S` merged, and a stretch is an
 event when it lasts at least :data:`MIN_DURATION_S` and holds at least :data:`MIN_CORE_S` of core
 samples, on joints whose departure peaks at :data:`MIN_PEAK_NOISE` white-noise torques or more.
-Why these figures: a bounded effect (a sinusoid, a friction law) never reaches 6× its
-MAD-scale; the catalogue's short spikes (a delay's or Stribeck's bump at a velocity reversal: a few
+Why these figures: a bounded effect (a sinusoid, a friction law) stays within about 1.5× its
+MAD-scale, far below 5; the catalogue's short spikes (a delay's or Stribeck's bump at a velocity reversal: a few
 tens of ms) stay under the duration rule (docs/gap-calibration.md).
 
 Before that, the columns of the smooth effects that leave a short bump at every velocity reversal
 (:func:`smooth_basis`) are fitted per joint and taken out: a bump that repeats with the motion is
 an effect, not an event.
+
+Kinds: ``stall`` (the arm's speed in the event below :data:`STALL_RATIO` of its speed in the
+0.5 s before, and it was moving), ``impact`` (shorter than :data:`IMPACT_S`), else
+``external_contact``.
 
 The events' samples are set aside: the effect fits, the scores, the maps and the figures of the
 diagnosis use the rest of the validation run (:func:`without_events`).
@@ -36,6 +41,7 @@ import numpy as np
 from urident.gap.significance import noise_sigma
 
 LEVEL_WINDOW_S = 4.0     # [s] running median: the residual's local level
+LEVEL_RATE_HZ = 25.0     # [Hz] ... taken on samples this far apart
 CORE_Z = 5.0             # a core sample departs by more than this many robust spreads
 EDGE_Z = 3.0             # an event extends while it departs by more than this
 NOISE_FLOOR = 3.0        # the spread is at least this many white-noise torques
@@ -65,10 +71,19 @@ class Event:
                 "rms_nm": list(self.rms_nm), "kind": self.kind, "n_samples": self.stop - self.start}
 
 
-def _running_median(x: np.ndarray, width: int) -> np.ndarray:
+def _running_median(x: np.ndarray, width: int, step: int = 1) -> np.ndarray:
+    """(N, 6) running median of ``x`` over ``width`` samples, taken on every ``step``-th sample and
+    interpolated between them (the level of a residual changes over seconds: cost bounded)."""
     from scipy.ndimage import median_filter
 
-    return median_filter(x, size=(max(1, width) | 1, 1), mode="mirror")
+    step = max(1, int(step))
+    sub = x[::step]
+    med = median_filter(sub, size=(max(1, width // step) | 1, 1), mode="mirror")
+    if step == 1:
+        return med
+    at = np.arange(0, len(x), step)
+    grid = np.arange(len(x))
+    return np.stack([np.interp(grid, at, med[:, j]) for j in range(x.shape[1])], axis=1)
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -81,7 +96,7 @@ def departures(r: np.ndarray, fs: float, iterations: int = 3) -> tuple[np.ndarra
     (module doc). The spread is taken again without the stretches flagged so far (``iterations``
     times): pushes covering a third of a run would otherwise widen it."""
     r = np.asarray(r, float)
-    d = r - _running_median(r, int(round(LEVEL_WINDOW_S * fs)))
+    d = r - _running_median(r, int(round(LEVEL_WINDOW_S * fs)), int(fs // LEVEL_RATE_HZ))
     floor = NOISE_FLOOR * noise_sigma(r)
     out = np.zeros(r.shape, bool)
     for _ in range(iterations):

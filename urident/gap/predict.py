@@ -30,21 +30,23 @@ column over-states the delay by the same attenuation).
 Per effect class, the quantity carried to the other run (the columns of
 :mod:`urident.gap.candidates` evaluated there, coefficients unchanged):
 
-=====================  ==========================================================================
-stribeck               the time the run spends near zero velocity: exp(−(q̇/v_s)²)·sign(q̇)
-load_friction          the run's link-torque distribution |τ̂_link| (from the model on its motion)
-thermal_drift          the run's warm-up: 1 − exp(−t/τ_w) over its own duration (fitted τ_w and
-                       amplitude), minutes elapsed (time variant), or its logged temperature
-                       history (temperature variants), times q̇ and sign(q̇)
-position_ripple        the angles it visits: sin/cos(k·q) (× sign(q̇) for friction ripple)
-current_delay          how fast its torque changes, dτ̂/dt, and the model torque shifted by
-                       the delay behind the fit, τ̂(t − d) − τ̂(t): the column's misfit there
-torque_constant_error  its torque τ̂
-current_offset         nothing (a constant)
-payload_error          its gravity and inertial load of the payload (the regressor on its motion)
-joint_elasticity       its link-torque curvature d²τ̂_link/dt²
-presliding             its stops and reversals: the Dahl state minus tanh(q̇/ε)
-=====================  ==========================================================================
+=======================  ==========================================================================
+stribeck                 the time the run spends near zero velocity: exp(−(q̇/v_s)²)·sign(q̇)
+load_friction            the run's link-torque distribution |τ̂_link| (from the model on its motion)
+thermal_drift            the run's warm-up: 1 − exp(−t/τ_w) over its own duration (fitted τ_w and
+                         amplitude), minutes elapsed (time variant), or its logged temperature
+                         history (temperature variants), times q̇ and sign(q̇)
+quadratic_viscous        its speed: q̇·|q̇|
+neighbour_load_friction  the neighbour's link-torque distribution |τ̂_link,k|
+position_ripple          the angles it visits: sin/cos(k·q) (× sign(q̇) for friction ripple)
+current_delay            how fast its torque changes, dτ̂/dt, and the model torque shifted by
+                         the delay behind the fit, τ̂(t − d) − τ̂(t): the column's misfit there
+torque_constant_error    its torque τ̂
+current_offset           nothing (a constant)
+payload_error            its gravity and inertial load of the payload (the regressor on its motion)
+joint_elasticity         its link-torque curvature d²τ̂_link/dt²
+presliding               its stops and reversals: the Dahl state minus tanh(q̇/ε)
+=======================  ==========================================================================
 
 Identification-mode effects carry their share of the base parameters' refit too (the correction is
 ``Fit.change``, the same as :mod:`urident.gap.check` applies).

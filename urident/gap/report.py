@@ -69,6 +69,8 @@ def format_report(res, top: int = 12) -> str:
                          f"RMS {x.rms_before_nm:.3f} -> {x.rms_after_nm:.3f} N·m "
                          f"({x.shrink_pct:.1f} % smaller), confidence {x.confidence}")
             lines.append(f"     where: {x.regime}")
+            if x.claim == "partial":
+                lines.append(f"     PARTIAL explanation, not the cause: {x.remains['text']}")
             if mag:
                 lines.append(f"     fitted: {mag}")
             if x.confounded_with:
@@ -82,7 +84,7 @@ def format_report(res, top: int = 12) -> str:
             lines.append(f"  joint {u['joint']}: RMS {u['rms_nm']:.3f} N·m, {u['noise_ratio']:.1f} x its "
                          f"white-noise torque ({u['noise_nm']:.3f} N·m); structured part "
                          f"{u['structured_rms_nm']:.3f} N·m")
-            for st in u.get("structure", []):
+            for st in u.get("structure", [])[:3]:     # the JSON has them all
                 lines.append(f"     structure: {st['text']}")
             for text in u["regimes"] or ["spread over all regimes"]:
                 lines.append(f"     where: {text}")

@@ -140,13 +140,14 @@ MIN_PAYLOAD_KG = 0.1
 
 def plausible(c: Candidate, beta: np.ndarray) -> bool:
     """Sign and size constraints of the catalogue's physics on the fitted coefficients:
-    Stribeck adds friction near zero velocity, load friction grows with load, presliding
+    Stribeck adds friction near zero velocity, load friction grows with load, drag grows with
+    speed, presliding
     friction holds (same sign as the motion before the stop), a delay is
     positive, an elastic joint has positive J/k, a payload has a mass (|m| >= MIN_PAYLOAD_KG,
     negative: a modelled payload removed) with its centre within 0.5 m of the tool point.
     Other effects may have either sign."""
     b = np.asarray(beta, float)
-    if c.effect in ("stribeck", "load_friction", "presliding"):
+    if c.effect in ("stribeck", "load_friction", "presliding", "quadratic_viscous", "neighbour_load_friction"):
         return bool(b[0] > 0)
     if c.effect in ("current_delay", "joint_elasticity"):
         return bool(b[0] < 0)

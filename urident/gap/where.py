@@ -13,7 +13,8 @@ from urident.gap.results import Score
 from urident.gap.significance import noise_sigma
 
 #: The map axes where each effect's improvement is looked for first.
-PREFER_AXIS = {"stribeck": ("velocity",), "load_friction": ("load",), "thermal_drift": ("time",),
+PREFER_AXIS = {"stribeck": ("velocity",), "load_friction": ("load",), "quadratic_viscous": ("velocity",),
+               "neighbour_load_friction": ("velocity",), "thermal_drift": ("time",),
                "position_ripple": ("angle",), "current_offset": ("velocity", "angle"),
                "torque_constant_error": ("load",), "payload_error": ("angle",),
                "current_delay": (), "joint_elasticity": ()}

@@ -8,6 +8,8 @@ Each function returns the values of a column that is linear in its coefficient, 
   bearing forces, hence the friction, grow with the transmitted torque τ_L); z the Coulomb state;
 * :func:`sqrt_viscous`: sign(q̇)·sqrt(|q̇|), a concave (sub-linear) viscous term, as the lubricant
   film of a harmonic drive gives;
+* :func:`quadratic_viscous`: q̇·|q̇|, friction growing faster than linearly with speed (lubricant
+  drag at high speed);
 * :func:`offset`: a constant (asymmetric Coulomb friction, current-sensor bias, static load);
 * :func:`coulomb_asymmetry`: |z|, a Coulomb level that differs between the two directions of
   motion (z the Coulomb state; unlike an offset it vanishes where z does);
@@ -53,6 +55,12 @@ def load_friction(link_torque: np.ndarray, coulomb_state: np.ndarray) -> np.ndar
 def sqrt_viscous(qd: np.ndarray) -> np.ndarray:
     qd = np.asarray(qd, dtype=float)
     return np.sign(qd) * np.sqrt(np.abs(qd))
+
+
+def quadratic_viscous(qd: np.ndarray) -> np.ndarray:
+    """q̇·|q̇| for velocities ``qd`` [rad/s]."""
+    qd = np.asarray(qd, dtype=float)
+    return qd * np.abs(qd)
 
 
 def offset(shape) -> np.ndarray:

@@ -7,7 +7,8 @@ from dataclasses import dataclass
 
 from urident.simcontroller.effects.base import Effect
 from urident.simcontroller.effects.dynamics import JointElasticity, PayloadError
-from urident.simcontroller.effects.friction import LoadFriction, PositionRipple, Stribeck, ThermalDrift
+from urident.simcontroller.effects.friction import (LoadFriction, NeighbourLoadFriction, PositionRipple,
+                                                     QuadraticViscous, Stribeck, ThermalDrift)
 from urident.simcontroller.effects.params import Param
 from urident.simcontroller.effects.sensor import CurrentDelay, CurrentOffset, TorqueConstantError
 
@@ -22,6 +23,8 @@ EFFECT_CLASSES: tuple[type[Effect], ...] = (
     CurrentOffset,
     PayloadError,
     JointElasticity,
+    QuadraticViscous,
+    NeighbourLoadFriction,
 )
 EFFECTS: dict[str, type[Effect]] = {cls.name: cls for cls in EFFECT_CLASSES}
 EFFECT_NAMES: tuple[str, ...] = tuple(EFFECTS)
@@ -30,7 +33,8 @@ EFFECT_NAMES: tuple[str, ...] = tuple(EFFECTS)
 #: the spring carry it), then friction, the joint spring last among torques; on the current, the
 #: delay, the gain and the offset (the offset is added to the reported value).
 APPLY_ORDER: tuple[str, ...] = (
-    "payload_error", "stribeck", "load_friction", "thermal_drift", "position_ripple",
+    "payload_error", "stribeck", "load_friction", "thermal_drift", "quadratic_viscous", "neighbour_load_friction",
+    "position_ripple",
     "joint_elasticity", "current_delay", "torque_constant_error", "current_offset",
 )
 

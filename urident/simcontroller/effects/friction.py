@@ -1,5 +1,6 @@
 """Friction effects the paper's model (viscous + Coulomb) does not have: Stribeck/static
-friction, load-dependent friction, temperature drift, position-dependent ripple."""
+friction, load-dependent friction, temperature drift, position-dependent ripple, friction growing
+faster than linearly with speed, friction driven by a neighbour's load."""
 
 from __future__ import annotations
 
@@ -142,3 +143,43 @@ class PositionRipple(Effect):
         if self._friction:
             out = out * self.context.sign(qd)
         return out
+
+
+class QuadraticViscous(Effect):
+    name = "quadratic_viscous"
+    summary = "friction growing faster than linearly with speed (lubricant drag): c₂·q̇·|q̇|"
+    details = ("τ = c₂·q̇·|q̇|: at high speed the gear's lubricant drag rises above the linear "
+               "viscous law of the model.")
+    params = (
+        Param("coefficient_nm_s2", "joint", 2.0, "c₂ [N·m·s²/rad²]", low=0.0),
+    )
+
+    def reset(self) -> None:
+        self._c2 = self.value("coefficient_nm_s2")
+
+    def _stateless_torque(self, t, q, qd, qdd, tau_model, temperatures, link_extra):
+        return self._c2 * qd * np.abs(qd)
+
+
+class NeighbourLoadFriction(Effect):
+    name = "neighbour_load_friction"
+    summary = "bearing friction driven by a neighbour's load: μ·|τ_link,k|·tanh(q̇/ε)"
+    details = ("τ_j = μ·|τ_link,k|·tanh(q̇_j/ε), k the neighbour joint whose link moment the joint's "
+               "bearing carries (default the next joint, the last joint's previous one).")
+    params = (
+        Param("coefficient", "joint", 0.02, "μ, friction per N·m of the neighbour's load [-]", low=0.0, high=1.0),
+        Param("neighbour", "joint", None, "the neighbour joint k (1-based); default the next joint",
+              low=1.0, high=6.0),
+    )
+
+    def reset(self) -> None:
+        self._mu = self.value("coefficient")
+        given = self.config.values["neighbour"]
+        default = np.r_[np.arange(1, 6), 4]                   # the next joint, the last: the previous
+        k = default if given is None else np.where(self.mask, np.asarray(given, float) - 1, default)
+        self._k = np.asarray(np.round(k), int)
+
+    def _stateless_torque(self, t, q, qd, qdd, tau_model, temperatures, link_extra):
+        ctx = self.context
+        load = ctx.link_torque(tau_model, qd, qdd) + link_extra
+        return self._mu * np.abs(load[..., self._k]) * ctx.sign(qd)
