@@ -190,6 +190,28 @@ def test_no_import_cycles_in_urident_counting_deferred_imports():
     assert not cycles, "import cycles (deferred imports counted): " + "; ".join(" -> ".join(c) for c in cycles)
 
 
+def symmetric_3x3_literals(root: Path, package: str = "urident") -> list[str]:
+    """Places that write a symmetric 3×3 matrix out of six numbers by hand (a nested list literal
+    whose off-diagonal entries repeat): the inertia conversions, which have one place."""
+    out = []
+    for m, path in _modules(root, package).items():
+        for n in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if not (isinstance(n, ast.List) and len(n.elts) == 3
+                    and all(isinstance(r, ast.List) and len(r.elts) == 3 for r in n.elts)):
+                continue
+            e = [[ast.dump(x) for x in r.elts] for r in n.elts]
+            if e[0][1] == e[1][0] and e[0][2] == e[2][0] and e[1][2] == e[2][1]:
+                out.append(f"{m}:{n.lineno}")
+    return out
+
+
+def test_the_inertia_conversions_have_one_place():
+    """Six numbers ↔ a 3×3 inertia only through urident.model.parameters (inertia_matrix,
+    inertia_vector, inertia_tensor): robot files, payloads, URScript, φ_F and MJCF/URDF agree."""
+    found = [p for p in symmetric_3x3_literals(ROOT) if not p.startswith("urident.model.parameters:")]
+    assert not found, "a 3×3 inertia built by hand: " + "; ".join(found)
+
+
 def test_nothing_below_the_command_line_imports_it():
     """The CLI is the top layer: it parses, calls the library and prints. No library module imports
     it (deferred imports counted); only entry points (``__main__`` modules) may."""

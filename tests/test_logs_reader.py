@@ -16,14 +16,13 @@ from urident.logs import (
     LOG_FIELDS,
     ColumnMapError,
     LogWriter,
-    add_log_arguments,
     describe_dropped,
     load_log,
-    load_log_from_args,
     parse_column_map,
     parse_row_range,
     sidecar_path,
 )
+from urident.cli.log_args import add_log_arguments, load_log_from_args
 
 DATA = UR10E_DATA
 HARM = DATA / "ur-20_02_10-30sec_12harm.csv"

@@ -94,8 +94,9 @@ class Payload:
 
     def urscript(self) -> str:
         """``set_target_payload(m, [cx, cy, cz], [Ixx, Iyy, Izz, Ixy, Ixz, Iyz])``."""
-        i = self.inertia_kg_m2
-        inertia = [i[0, 0], i[1, 1], i[2, 2], i[0, 1], i[0, 2], i[1, 2]]
+        from urident.model.parameters import inertia_vector
+
+        inertia = inertia_vector(self.inertia_kg_m2, "ur")
         return (f"set_target_payload({self.mass_kg:.4f}, [{', '.join(f'{v:.5f}' for v in self.com_m)}], "
                 f"[{', '.join(f'{v:.6f}' for v in inertia)}])")
 
@@ -112,14 +113,14 @@ def _skew(v) -> np.ndarray:
 
 
 def _tensor(j6) -> np.ndarray:
-    xx, yy, zz, yz, xz, xy = j6
-    return np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+    """J from φ_F's six inertia entries (PAYLOAD_FIELDS' order)."""
+    from urident.model.parameters import inertia_matrix
+
+    return inertia_matrix(j6, "flange")
 
 
 def _to_body(spec, phi: np.ndarray) -> np.ndarray:
     """φ_F → the paper's ten parameters about K_6 (module doc)."""
-    from urident.model.parameters import inertia_tensor  # noqa: F401  (the layout's J convention)
-
     t = np.asarray(spec.tool_xyz, dtype=float)
     r = np.asarray(spec.tool_rotation, dtype=float)
     m, h = phi[0], r @ phi[1:4]

@@ -153,6 +153,29 @@ def body_params(mass: float, com: np.ndarray, inertia_com: np.ndarray) -> np.nda
     return np.array([mass, h[0], h[1], h[2], j[0, 0], j[1, 1], j[2, 2], -j[1, 2], -j[0, 2], -j[0, 1]])
 
 
+#: The orders in which files and formulas write a symmetric 3×3 inertia as six numbers (entries
+#: as (row, column)): ``ur`` [Ixx, Iyy, Izz, Ixy, Ixz, Iyz], robot files, payload files and
+#: URScript's set_target_payload; ``flange`` [Jxx, Jyy, Jzz, Jyz, Jxz, Jxy], the payload's
+#: flange-frame vector φ_F (ident.payload). The paper's (A, B, C, D, E, F) = (Jxx, Jyy, Jzz, −Jyz,
+#: −Jxz, −Jxy) is :func:`inertia_tensor`.
+INERTIA_ORDERS = {"ur": ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)),
+                  "flange": ((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1))}
+
+
+def inertia_matrix(v6, order: str = "ur") -> np.ndarray:
+    """The symmetric 3×3 inertia from its six numbers in ``order`` (:data:`INERTIA_ORDERS`)."""
+    j = np.zeros((3, 3))
+    for value, (r, c) in zip(np.asarray(v6, dtype=float), INERTIA_ORDERS[order]):
+        j[r, c] = j[c, r] = value
+    return j
+
+
+def inertia_vector(j, order: str = "ur") -> np.ndarray:
+    """The six numbers of the 3×3 inertia ``j`` in ``order`` (:data:`INERTIA_ORDERS`)."""
+    j = np.asarray(j, dtype=float)
+    return np.array([j[r, c] for r, c in INERTIA_ORDERS[order]])
+
+
 def inertia_tensor(p10: np.ndarray) -> np.ndarray:
     """J about the joint frame origin from (…, A, B, C, D, E, F)."""
     a, b, c, d, e, f = p10[4:10]

@@ -17,7 +17,7 @@ from typing import Any, Iterable
 import numpy as np
 
 from urident.errors import ConfigError, UnknownRobotError, shown
-from urident.model.parameters import N_JOINTS, N_PARAMS, standard_from_links  # noqa: F401  (N_PARAMS: re-exported)
+from urident.model.parameters import N_JOINTS, N_PARAMS, inertia_matrix, standard_from_links  # noqa: F401  (N_PARAMS: re-exported)
 from urident.yamlio import Fields, load_yaml
 
 ROBOTS_DIR = Path(__file__).parent / "robots"
@@ -303,10 +303,7 @@ def _parse_joint(reader: "_Reader", jd: Any, where: str) -> Joint:
     link = reader.get(jd, "link", dict, where)
     lw = f"{where}.link"
     reader.keys(link, _LINK_KEYS, lw)
-    inertia = reader.vector(link, "inertia_com", lw, 6)  # Ixx, Iyy, Izz, Ixy, Ixz, Iyz
-    inertia_com = np.array([[inertia[0], inertia[3], inertia[4]],
-                            [inertia[3], inertia[1], inertia[5]],
-                            [inertia[4], inertia[5], inertia[2]]])
+    inertia_com = inertia_matrix(reader.vector(link, "inertia_com", lw, 6), "ur")
     problem = inertia_problem(inertia_com)
     if problem:
         raise reader.fail(f"{lw}.inertia_com", problem)

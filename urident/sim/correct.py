@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from urident.errors import ConfigError
+from urident.model.parameters import inertia_matrix
 
 
 def _parse(path) -> ET.ElementTree:
@@ -311,8 +312,7 @@ def _urdf_text(sim, spec, changes: dict, notes) -> str:
             m0, c0 = float(inertial.find("mass").get("value")), np.array(xyz)
             e = inertial.find("inertia")
             g = {k: float(e.get(k, 0)) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}
-            ic = np.array([[g["ixx"], g["ixy"], g["ixz"]], [g["ixy"], g["iyy"], g["iyz"]],
-                           [g["ixz"], g["iyz"], g["izz"]]])
+            ic = inertia_matrix([g["ixx"], g["iyy"], g["izz"], g["ixy"], g["ixz"], g["iyz"]], "ur")
             r = rpy_to_matrix(np.array(rpy))
             ic0 = r @ ic @ r.T
             link.remove(inertial)

@@ -23,8 +23,9 @@ def payload_params(spec, mass_kg: float, offset_m: np.ndarray, inertia_com=None)
 
 def inertia_matrix(diagonal, products) -> np.ndarray:
     """3×3 inertia from [Ixx, Iyy, Izz] and [Ixy, Ixz, Iyz] (URScript's order)."""
-    (xx, yy, zz), (xy, xz, yz) = diagonal, products
-    return np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]], dtype=float)
+    from urident.model.parameters import inertia_matrix as from_six
+
+    return from_six(np.concatenate([np.asarray(diagonal, float), np.asarray(products, float)]), "ur")
 
 
 class PayloadError(Effect):
