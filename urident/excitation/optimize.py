@@ -10,8 +10,8 @@ Method (measured against L-BFGS-B with forward differences and a smooth bound of
   continue (their BFGS matrix kept) until converged: the objective fell by less than
   ``tolerance`` over the last ``window`` iterations, or the gradient vanished, or ``iterations``.
   Local optima differ by tens of percent between starts, so screening many beats running few long.
-* Starts run in ``workers`` spawned processes with one BLAS thread each (``workers=0``: in this
-  process). On a shared machine, threaded BLAS made the small matrix products of one evaluation
+* Starts run in ``workers`` spawned processes with one BLAS thread each (``workers=0``, the
+  default for a single start: in this process). On a shared machine, threaded BLAS made the small matrix products of one evaluation
   10-70 times slower (eigh of 52×52: 58 ms against 0.7 ms). Every start's result is independent of
   the others and of the order they run in, so a seed gives one trajectory.
 * ``budget_s`` caps the search's wall time; :class:`Convergence` says how far from converged it
@@ -64,10 +64,25 @@ class Convergence:
         return self.reason in ("converged", "gradient", "line search")
 
     def as_dict(self) -> dict:
-        return {"converged": self.converged, "stop_reason": self.reason, "total_iterations": self.iterations,
-                "gradient_norm": float(self.gradient_norm),
-                "last_window_improvement": None if np.isnan(self.improvement) else float(self.improvement),
-                "window": self.window}
+        """For the trajectory file's ``optimization`` section (numbers, strings and booleans only)."""
+        out = {"converged": self.converged, "stop_reason": self.reason, "total_iterations": self.iterations,
+               "gradient_norm": float(self.gradient_norm), "window": self.window}
+        if not np.isnan(self.improvement):
+            out["last_window_improvement"] = float(self.improvement)
+        return out
+
+    def describe(self, criterion: str) -> str:
+        """One line: why the search stopped and how far from converged."""
+        what = {"converged": "converged", "gradient": "converged (gradient vanished)",
+                "line search": "converged (no further descent found)",
+                "iterations": "stopped at the iteration limit", "budget": "stopped by the time budget"}[self.reason]
+        if np.isnan(self.improvement):
+            fall = "fewer iterations than the window"
+        elif criterion == "cond":
+            fall = f"cond fell {100 * -np.expm1(-self.improvement / 2):.2f} % over the last {self.window} iterations"
+        else:
+            fall = f"det(Λ)^(1/b) rose {100 * np.expm1(self.improvement):.2f} % over the last {self.window} iterations"
+        return f"{what} after {self.iterations} iterations ({fall}, |∇| {self.gradient_norm:.2g})"
 
 
 @dataclass(frozen=True)
@@ -247,8 +262,9 @@ def optimize_excitation(spec: RobotSpec, settings: ExcitationSettings | None = N
                         base: BaseParameters | None = None, payload=None) -> ExcitationResult:
     """Optimise an excitation trajectory for ``spec``; reproducible for a given ``settings.seed``
     (unless ``settings.budget_s`` stops it). ``payload`` (:class:`urident.ident.payload.Payload`):
-    the torque limits hold with it too. ``progress`` gets a message after each stage; a progress
-    line is written to a terminal's stderr while the starts run."""
+    the torque limits hold with it too. ``progress`` gets a message after each stage, and with it a
+    progress line is written to a terminal's stderr while the starts run. The starts run in spawned
+    processes: a script calling this needs the ``if __name__ == "__main__":`` guard."""
     settings = ExcitationSettings() if settings is None else settings
     say = progress or (lambda message: None)
     start_time, cpu_start = time.perf_counter(), time.process_time()
@@ -262,9 +278,12 @@ def optimize_excitation(spec: RobotSpec, settings: ExcitationSettings | None = N
     order = np.argsort(scores, kind="stable")[: settings.starts]
     say(f"{settings.candidates} random feasible candidates: best criterion {_show(settings, crit[order[0]])}")
     starts = [_Start(k, candidates[c]) for k, c in enumerate(order)]
-    workers = min(MAX_WORKERS, os.cpu_count() or 1) if settings.workers is None else settings.workers
+    workers = settings.workers
+    if workers is None:  # one start: not worth a process's start-up (≈ 2 s)
+        workers = min(MAX_WORKERS, os.cpu_count() or 1) if len(starts) > 1 else 0
     workers = min(workers, len(starts))
-    with Progress("urident excite: BFGS", stream=None) as line:
+    with Progress("urident excite: BFGS") as line:
+        line.enabled = line.enabled and progress is not None
         runner = _Runner(problem, payload, workers, line, lambda v: _show(settings, v))
         try:
             screen = min(settings.screen_iterations, settings.iterations)
@@ -293,7 +312,7 @@ def optimize_excitation(spec: RobotSpec, settings: ExcitationSettings | None = N
         c_val, coll_val, tau_val = (float(v[0]) for v in problem.objective(x))
         results.append((c_val + PENALTY_WEIGHT * (coll_val + tau_val), s, x[0]))
         say(f"start {s.key + 1}: {_show(settings, c_val)}, penalty {coll_val + tau_val:.3g}, "
-            + _describe(settings, _convergence(settings, s)))
+            + _convergence(settings, s).describe(settings.criterion))
     results.sort(key=lambda r: r[0])
     best = results[0][1]
     convergence = _convergence(settings, best)
@@ -320,20 +339,6 @@ def _convergence(settings: ExcitationSettings, start: _Start) -> Convergence:
     h = start.history
     improvement = h[-settings.window - 1] - h[-1] if len(h) > settings.window else float("nan")
     return Convergence(len(h), start.reason, start.gradient_norm, improvement, settings.window)
-
-
-def _describe(settings: ExcitationSettings, c: Convergence) -> str:
-    """One line: why the search stopped and how far from converged."""
-    what = {"converged": "converged", "gradient": "converged (gradient vanished)",
-            "line search": "converged (no further descent found)", "iterations": "stopped at the iteration limit",
-            "budget": "stopped by the time budget"}[c.reason]
-    if np.isnan(c.improvement):
-        fall = "fewer iterations than the window"
-    elif settings.criterion == "cond":
-        fall = f"cond fell {100 * np.expm1(c.improvement / 2):.2f} % over the last {c.window} iterations"
-    else:
-        fall = f"det(Λ)^(1/b) rose {100 * np.expm1(c.improvement):.2f} % over the last {c.window} iterations"
-    return f"{what} after {c.iterations} iterations ({fall}, |∇| {c.gradient_norm:.2g})"
 
 
 def _finalise(problem: ExcitationProblem, spec: RobotSpec, x: np.ndarray) -> tuple[FourierTrajectory, float]:

@@ -60,7 +60,7 @@ class ExcitationSettings:
     tolerance: float = 2e-3               # converged: the objective fell less than this over
     window: int = 50                      # the last ``window`` iterations (2e-3: 0.1 % of cond Θ̄_B)
     budget_s: float | None = None         # wall-time cap of the search [s]; None: until converged
-    workers: int | None = None            # processes running starts; None: one per core, at most 2; 0: none
+    workers: int | None = None            # processes running starts (0: none); None: one per core, at most 2
     criterion_samples: int = 100
     collision_samples: int = 400
     limit_samples: int = 800
