@@ -120,15 +120,15 @@ class _Start:
         return self.history[-1] if self.history else np.inf
 
 
-def _advance(problem: ExcitationProblem, start: _Start, iterations: int, deadline: float | None,
+def _advance(problem: ExcitationProblem, start: _Start, until: int, deadline: float | None,
              report: Callable[[int, int, float], None]) -> _Start:
-    """Up to ``iterations`` more BFGS iterations of ``start`` (its BFGS matrix kept); a failed line
-    search is retried once from a fresh matrix."""
+    """BFGS iterations of ``start`` (its BFGS matrix kept) until it has run ``until`` in all, converged
+    or reached ``deadline``; a failed line search is retried once from a fresh matrix."""
     s = problem.settings
     cpu = time.process_time()
     history = list(start.history)
     x, hess_inv, evaluations, reason, gnorm = start.x, start.hess_inv, start.evaluations, "iterations", np.inf
-    limit = len(history) + iterations
+    limit = until
     retried = False
     while len(history) < limit:
         stop = [""]
@@ -191,9 +191,9 @@ def _init_worker(spec, settings, base, payload, queue) -> None:
     _WORKER["queue"] = queue
 
 
-def _advance_in_worker(start: _Start, iterations: int, deadline: float | None) -> _Start:
+def _advance_in_worker(start: _Start, until: int, deadline: float | None) -> _Start:
     queue = _WORKER["queue"]
-    return _advance(_WORKER["problem"], start, iterations, deadline,
+    return _advance(_WORKER["problem"], start, until, deadline,
                     lambda key, it, value: queue.put((key, it, value)))
 
 
@@ -231,10 +231,10 @@ class _Runner:
         self.progress.done = iterations
         self.progress.advance(0, f"iterations, best {self.show(best)}")
 
-    def run(self, starts: list[_Start], iterations: int, deadline: float | None) -> list[_Start]:
+    def run(self, starts: list[_Start], until: int, deadline: float | None) -> list[_Start]:
         if self.pool is None:
-            return [_advance(self.problem, s, iterations, deadline, self.report) for s in starts]
-        futures: list[Future] = [self.pool.submit(_advance_in_worker, s, iterations, deadline) for s in starts]
+            return [_advance(self.problem, s, until, deadline, self.report) for s in starts]
+        futures: list[Future] = [self.pool.submit(_advance_in_worker, s, until, deadline) for s in starts]
         pending = set(futures)
         while pending:
             _, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
@@ -293,12 +293,12 @@ def optimize_excitation(spec: RobotSpec, settings: ExcitationSettings | None = N
                 say(f"{len(starts)} starts after {screen} iterations: best {_show(settings, ranked[0].objective)}, "
                     f"worst {_show(settings, ranked[-1].objective)}; continuing the best {settings.finalists} "
                     f"({time.perf_counter() - start_time:.1f} s)")
-                finalists = [s for s in ranked[: settings.finalists]]
+                finalists = ranked[: settings.finalists]
             else:
                 finalists = starts
             going = [s for s in finalists if not s.done]
             if going:
-                ended = {s.key: s for s in runner.run(going, settings.iterations - len(going[0].history), deadline)}
+                ended = {s.key: s for s in runner.run(going, settings.iterations, deadline)}
                 finalists = [ended.get(s.key, s) for s in finalists]
                 starts = [ended.get(s.key, s) for s in starts]
         finally:
