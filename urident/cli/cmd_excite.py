@@ -62,8 +62,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="BFGS iterations per start at most (default 1000; a start ends earlier once "
                         "cond fell less than 0.1 %% over its last 50 iterations)")
     p.add_argument("--budget", type=options.positive_float, default=None, metavar="SECONDS",
-                   help="stop the search after this wall time [s] and keep the best point so far; the "
-                        "output says how far from converged it stopped (default: until converged)")
+                   help="stop the search after this wall time [s] and keep the best point so far (the "
+                        "dense checks after it add a few seconds); the output says how far from converged "
+                        "it stopped (default: until converged)")
     p.add_argument("--velocity-fraction", type=options.fraction, default=None,
                    help=f"|q̇| ≤ fraction · robot limit (default 0.8; {PAYLOAD_VELOCITY_FRACTION} with "
                         "--for-payload, which also keeps |q̇| within 2.25 rad/s: servoJ's lag inside "
