@@ -2,6 +2,7 @@
 trajectory files, the CLI and the optimiser (small sizes)."""
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -312,23 +313,28 @@ def test_cli_check_trajectory_rejects_violation(ur5, tmp_path, capsys):
 def test_cli_excite_writes_a_checked_file(tmp_path, capsys):
     out = tmp_path / "small.yaml"
     code = main(["excite", "--robot", "ur5", "--out", str(out), "--harmonics", "2", "--duration", "6",
-                 "--iterations", "4", "--starts", "1", "--reduced", "--seed", "5", "--quiet"])
+                 "--iterations", "4", "--starts", "1", "--reduced", "--seed", "5", "--budget", "600", "--quiet"])
     assert code == 0
-    assert "cond" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "cond" in printed and "search: stopped at the iteration limit after 4 iterations" in printed
     loaded = load_trajectory(out)
     assert loaded.trajectory.harmonics == 2 and loaded.trajectory.duration == 6.0
     assert loaded.optimization["seed"] == 5 and loaded.optimization["reduced"] is True
     assert loaded.criteria["cond_lambda"] == pytest.approx(loaded.criteria["cond_theta"] ** 2)
     assert loaded.check["ok"] is True and loaded.check["min_distance_m"] > 0
+    assert loaded.optimization["stop_reason"] == "iterations" and loaded.optimization["converged"] is False
+    assert loaded.optimization["budget_s"] == 600
     assert check_trajectory(loaded.spec, loaded.trajectory, limits=loaded.limits).ok
 
 
 # -- optimiser ------------------------------------------------------------------------------------
 
 def test_optimized_cond_beats_random_and_is_reproducible(ur5):
-    settings = ExcitationSettings(**SMALL, seed=7)
-    first = optimize_excitation(ur5, settings)
-    second = optimize_excitation(ur5, settings)
+    # two starts screened, one continued: the result does not depend on where the starts run (two
+    # worker processes, or this one)
+    settings = ExcitationSettings(**{**SMALL, "starts": 2, "finalists": 1, "screen_iterations": 4}, seed=7)
+    first = optimize_excitation(ur5, replace(settings, workers=2))
+    second = optimize_excitation(ur5, replace(settings, workers=0))
     np.testing.assert_array_equal(first.trajectory.a, second.trajectory.a)
     report = check_trajectory(ur5, first.trajectory, limits=first.limits)
     assert report.ok
@@ -337,6 +343,35 @@ def test_optimized_cond_beats_random_and_is_reproducible(ur5):
     random = random_feasible_criteria(ur5, settings, 30, seed=1)
     assert first.coarse_criteria.cond_theta < np.median(random)
     assert first.criteria.cond_lambda == pytest.approx(first.criteria.cond_theta ** 2)
+    assert first.convergence.iterations == settings.iterations and first.convergence.reason == "iterations"
+
+
+@pytest.mark.parametrize("criterion", ["cond", "logdet"])
+@pytest.mark.parametrize("scale", [1.0, 1.4])  # feasible, and past the limits and collision clearance
+def test_objective_gradient_matches_finite_differences(ur5, criterion, scale):
+    problem = ExcitationProblem(ur5, ExcitationSettings(**SMALL, criterion=criterion))
+    x = problem.shrink_to_collision_free(problem.random_coefficients(np.random.default_rng(4), 1))[0]
+    x = (x * scale).ravel()
+    value, grad = problem.value_and_gradient(x)
+    assert value == pytest.approx(problem.value(x.reshape(1, 6, -1))[0], rel=1e-12)
+    h = 1e-5
+    fd = np.array([(problem.value((x + h * e).reshape(1, 6, -1))[0]
+                    - problem.value((x - h * e).reshape(1, 6, -1))[0]) / (2 * h) for e in np.eye(x.size)])
+    assert np.max(np.abs(grad - fd)) < 1e-3 * np.max(np.abs(fd))
+
+
+def test_search_converges_or_stops_at_the_budget_and_says_so(ur5):
+    settings = ExcitationSettings(**{**SMALL, "iterations": 400, "window": 10, "tolerance": 5e-3}, seed=3,
+                                  workers=0)
+    done = optimize_excitation(ur5, settings)
+    c = done.convergence
+    assert c.converged and c.iterations < 400 and c.improvement < settings.tolerance
+    assert "converged after" in c.describe("cond") and done.convergence.as_dict()["converged"] is True
+    cut = optimize_excitation(ur5, replace(settings, budget_s=1e-3))
+    assert cut.convergence.reason == "budget" and not cut.convergence.converged
+    assert cut.convergence.iterations < c.iterations
+    assert "stopped by the time budget" in cut.convergence.describe("cond")
+    assert check_trajectory(ur5, cut.trajectory, limits=cut.limits).ok
 
 
 # -- shipped experiments --------------------------------------------------------------------------

@@ -50,7 +50,7 @@ def test_tool_capsule_distances_numpy_equal_coal(rng):
 def test_for_payload_conditions_the_payload_columns_and_passes_the_check(tmp_path, capsys):
     out = tmp_path / "payload_traj.yaml"
     assert main(["excite", "--robot", "ur10e", "--for-payload", "--tool-capsule", "0.05,0.15",
-                 "--out", str(out), "--starts", "1", "--quiet"]) == 0
+                 "--out", str(out), "--starts", "1", "--iterations", "100", "--quiet"]) == 0
     assert "payload columns cond" in capsys.readouterr().out
     loaded = load_trajectory(out)
     assert loaded.tool == TOOL and loaded.optimization["for_payload"] is True

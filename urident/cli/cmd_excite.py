@@ -56,9 +56,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--q0", type=options.joint_vector, default=None,
                    help="offsets q_i,0 [rad] as six comma-separated numbers (default: 0,-pi/2,0,0,0,0)")
     p.add_argument("--starts", type=options.int_range(1, 1000), default=None,
-                   help="optimiser starts (default 2)")
+                   help="optimiser starts (default 8: each runs 60 BFGS iterations, the best 2 continue "
+                        "until converged)")
     p.add_argument("--iterations", type=options.int_range(1, 100000), default=None,
-                   help="L-BFGS-B iterations per start (default 100)")
+                   help="BFGS iterations per start at most (default 1000; a start ends earlier once "
+                        "cond fell less than 0.1 %% over its last 50 iterations)")
+    p.add_argument("--budget", type=options.positive_float, default=None, metavar="SECONDS",
+                   help="stop the search after this wall time [s] and keep the best point so far (the "
+                        "dense checks after it add a few seconds); the output says how far from converged "
+                        "it stopped (default: until converged)")
     p.add_argument("--velocity-fraction", type=options.fraction, default=None,
                    help=f"|q̇| ≤ fraction · robot limit (default 0.8; {PAYLOAD_VELOCITY_FRACTION} with "
                         "--for-payload, which also keeps |q̇| within 2.25 rad/s: servoJ's lag inside "
@@ -141,6 +147,8 @@ def run(args: argparse.Namespace) -> int:
             settings = replace(settings, starts=args.starts)
         if args.iterations is not None:
             settings = replace(settings, iterations=args.iterations)
+        if args.budget is not None:
+            settings = replace(settings, budget_s=args.budget)
     except ValueError as exc:  # a combination of valid flags the settings refuse
         raise ConfigError(f"excitation settings: {exc}") from None
     progress = None if args.quiet else (lambda message: print(f"urident excite: {message}", file=sys.stderr,
@@ -155,11 +163,15 @@ def run(args: argparse.Namespace) -> int:
     if str(args.robot).endswith((".yaml", ".yml")) or "/" in str(args.robot):
         robot_ref = os.path.relpath(Path(args.robot).resolve(), Path(out).resolve().parent)
     optimization = {"criterion": settings.criterion, "reduced": settings.reduced, "seed": settings.seed,
-                    "starts": settings.starts, "iterations": settings.iterations,
-                    "criterion_samples": settings.criterion_samples,
+                    "starts": settings.starts, "screen_iterations": settings.screen_iterations,
+                    "finalists": settings.finalists, "iterations": settings.iterations,
+                    "tolerance": settings.tolerance, "criterion_samples": settings.criterion_samples,
                     "collision_samples": settings.collision_samples,
                     "limit_samples": settings.limit_samples, "periods": settings.periods,
-                    "wall_s": round(result.wall_s, 3), "evaluations": result.evaluations}
+                    "wall_s": round(result.wall_s, 3), "cpu_s": round(result.cpu_s, 3),
+                    "evaluations": result.evaluations, **result.convergence.as_dict()}
+    if settings.budget_s is not None:
+        optimization["budget_s"] = settings.budget_s
     criteria = {**result.criteria.as_dict(), "rate_hz": spec.controller_rate_hz, "reduced": settings.reduced}
     if settings.for_payload:
         optimization.update(for_payload=True, arm_joint_fraction=settings.arm_joint_fraction,
@@ -194,6 +206,7 @@ def run(args: argparse.Namespace) -> int:
           + f"cond(Θ̄_B) = {result.criteria.cond_theta:.4g} (cond Λ = {result.criteria.cond_lambda:.4g}, "
           f"{result.criteria.n_base} base parameters), min distance {report.min_distance_m:.4f} m "
           f"({report.min_distance_pair}), {result.wall_s:.1f} s")
+    print(f"search: {result.convergence.describe(settings.criterion)}")
     if payload is not None:
         print(f"payload {payload.mass_kg:g} kg ({payload_source}): recorded in the file, the torque checks "
               f"hold with and without it (check-trajectory, run)")

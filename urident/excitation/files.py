@@ -33,7 +33,7 @@ Format (``format_version: 1``)::
     payload: {mass_kg: 5.0, com_m: [0, 0, 0.1], inertia_kg_m2: [[..], [..], [..]]}   # optional: the
                                         # load the torque checks included (flange frame, inertia
                                         # about the centre of mass; none: the empty flange)
-    optimization: {...}                 # optional: criterion, reduced, seed, settings, wall_s
+    optimization: {...}                 # optional: criterion, reduced, seed, settings, wall_s, how the search ended
     criteria: {...}                     # optional: cond_theta, cond_lambda, logdet_lambda, ...
     check: {...}                        # optional: rate_hz, min_distance_m, min_distance_pair
 
@@ -74,7 +74,9 @@ _ABS_LIMIT_KEYS = {"q_min_rad": "q_min", "q_max_rad": "q_max", "qd_max_rad_s": "
                    "qdd_max_rad_s2": "qdd_max", "tau_max_nm": "tau_max"}
 _OPT_KEYS = {"criterion", "reduced", "seed", "starts", "iterations", "criterion_samples",
              "collision_samples", "limit_samples", "periods", "wall_s", "evaluations", "for_payload",
-             "arm_joint_fraction", "max_velocity_rad_s"}
+             "arm_joint_fraction", "max_velocity_rad_s", "screen_iterations", "finalists", "tolerance",
+             "cpu_s", "budget_s", "converged", "stop_reason", "total_iterations", "gradient_norm",
+             "last_window_improvement", "window"}
 _CRITERIA_KEYS = {"cond_theta", "cond_lambda", "logdet_lambda", "cond_theta_raw", "cond_theta_equilibrated", "n_samples",
                   "n_base", "rate_hz", "reduced", "payload_cond"}
 _CHECK_KEYS = {"rate_hz", "min_distance_m", "min_distance_pair", "collision_margin_m", "ok"}

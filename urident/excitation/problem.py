@@ -1,0 +1,320 @@
+"""The excitation design problem (paper eq. 26) on fixed time grids: the criterion of the base
+regressor's information matrix Λ (cond or log det), the constraints as smooth penalties, and its
+exact gradient in the free Fourier coefficients (:mod:`urident.excitation.gradient`).
+
+* The free coefficients (6 × 2(L−1), rest at both ends built in, see :mod:`fourier`) are the
+  variables.
+* The criterion uses the base regressor on a coarse grid (``criterion_samples``); the kinematic
+  limits (on a fine grid), collisions (vectorised numpy capsule distances, with a small extra
+  buffer) and nominal torques enter as smooth quadratic penalties.
+* :meth:`ExcitationProblem.project` scales each joint's coefficients onto the kinematic limits
+  (each joint's motion is linear in its own coefficients, so this is exact).
+
+Payload excitation (``for_payload``): the criterion is the condition number of the ten payload
+columns (:func:`urident.ident.payload.payload_regressor`, reference-scaled by
+:func:`~urident.ident.payload.payload_reference_scales`), the arm's parameters taken as known; the
+arm joints 1-3 move within ``arm_joint_fraction`` of their velocity and acceleration limits, so the
+motion is the wrist's (the orientation of gravity in the flange frame and the flange's rotation
+are all the payload needs, while large arm motion only adds the arm model's error to the residual).
+A mounted tool (``spec.tool``) is part of the collision model either way.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import scipy.linalg
+
+from urident.excitation.collision import CapsuleModel, capsule_model
+from urident.excitation.constraints import Limits, Margins, joint_scale_factors
+from urident.excitation.criteria import CRITERIA, gram_criteria, reference_scales
+from urident.excitation.fourier import FourierBasis, FourierTrajectory, base_frequency
+from urident.excitation.gradient import STATE_STEP, chain, criterion_weights, perturbed_states, state_derivatives
+from urident.model.base import BaseParameters, base_parameters
+from urident.model.parameters import N_PARAMS, tool_body_vector
+from urident.model.regressor import regressor_blocks
+from urident.model.robot import RobotSpec
+
+PAPER_Q0 = (0.0, -np.pi / 2, 0.0, 0.0, 0.0, 0.0)  # paper section IV-C: q2,0 = −π/2, others 0
+PENALTY_WEIGHT = 1.0e3
+KINEMATIC_WEIGHT = 1.0e4
+COLLISION_SCALE_M = 0.01  # a shortfall of this much costs the collision penalty's weight
+#: ``for_payload``: joints 1-3 keep within this fraction of their velocity and acceleration limits.
+ARM_JOINT_FRACTION = 0.2
+
+
+@dataclass(frozen=True)
+class ExcitationSettings:
+    harmonics: int = 5
+    duration_s: float = 20.0
+    periods: int = 1                      # whole base periods in the duration: ω = 2π·periods/T
+    q0: tuple[float, ...] = PAPER_Q0
+    criterion: str = "cond"               # 'cond' (min cond Λ) or 'logdet' (max log det Λ)
+    reduced: bool = False                 # the paper's reduced (33) or the full (52) base parameters
+    seed: int = 0
+    candidates: int = 32                  # random feasible points scored before optimising
+    starts: int = 8                       # BFGS runs from the best candidates, screened ...
+    screen_iterations: int = 60           # ... for this many iterations each, then
+    finalists: int = 2                    # the best of them continued until converged
+    iterations: int = 1000                # at most this many BFGS iterations per start in all
+    tolerance: float = 2e-3               # converged: the objective fell less than this over
+    window: int = 50                      # the last ``window`` iterations (2e-3: 0.1 % of cond Θ̄_B)
+    budget_s: float | None = None         # wall-time cap of the search [s]; None: until converged
+    workers: int | None = None            # processes running starts (0: none); None: one per core, at most 2
+    criterion_samples: int = 100
+    collision_samples: int = 400
+    limit_samples: int = 800
+    collision_buffer_m: float = 0.01      # extra distance while optimising on the coarse grid
+    margins: Margins = field(default_factory=Margins)
+    for_payload: bool = False             # criterion: cond of the payload columns (module doc)
+    arm_joint_fraction: float = ARM_JOINT_FRACTION   # for_payload: joints 1-3's share of their limits
+    max_velocity_rad_s: float | None = None  # the optimiser's |q̇| bound on every joint besides the margins'
+
+    def __post_init__(self) -> None:
+        if self.criterion not in CRITERIA:
+            raise ValueError(f"criterion must be one of {', '.join(CRITERIA)}, not {self.criterion!r}")
+        if self.harmonics < 2:
+            raise ValueError("harmonics must be at least 2 (rest at both ends removes two per joint)")
+        if not self.duration_s > 0 or self.periods < 1:
+            raise ValueError("duration_s must be positive and periods at least 1")
+        if len(self.q0) != 6:
+            raise ValueError("q0 must have 6 entries")
+        if min(self.candidates, self.starts, self.finalists, self.window, self.criterion_samples,
+               self.collision_samples, self.limit_samples) < 1 or min(self.iterations, self.screen_iterations) < 0:
+            raise ValueError("sample counts, candidates, starts, finalists and window must be positive")
+        if not self.tolerance >= 0:
+            raise ValueError(f"tolerance must not be negative, not {self.tolerance}")
+        if self.budget_s is not None and not self.budget_s > 0:
+            raise ValueError(f"budget_s must be positive, not {self.budget_s}")
+        if self.workers is not None and self.workers < 0:
+            raise ValueError(f"workers must not be negative, not {self.workers}")
+        if self.max_velocity_rad_s is not None and not self.max_velocity_rad_s > 0:
+            raise ValueError(f"max_velocity_rad_s must be positive, not {self.max_velocity_rad_s}")
+        if not 0 < self.arm_joint_fraction <= 1:
+            raise ValueError(f"arm_joint_fraction must be in (0, 1], not {self.arm_joint_fraction}")
+
+    @property
+    def omega(self) -> float:
+        return base_frequency(self.duration_s, self.periods)
+
+
+
+class ExcitationProblem:
+    """The objective on fixed grids, batched over coefficient sets ``X`` (B, 6, 2(L−1))."""
+
+    def __init__(self, spec: RobotSpec, settings: ExcitationSettings,
+                 base: BaseParameters | None = None, payload=None):
+        s = settings
+        self.spec, self.settings = spec, s
+        self.file_limits = Limits.from_robot(spec, s.margins)   # what the trajectory file states
+        self.limits = self.file_limits
+        if s.for_payload:  # the optimiser's own, tighter bounds on the arm joints (module doc)
+            f = np.where(np.arange(6) < 3, s.arm_joint_fraction, 1.0)
+            self.limits = replace(self.file_limits, qd_max=self.file_limits.qd_max * f,
+                                  qdd_max=self.file_limits.qdd_max * f)
+        if s.max_velocity_rad_s is not None:
+            self.limits = replace(self.limits, qd_max=np.minimum(self.limits.qd_max, s.max_velocity_rad_s))
+        self.q0 = np.array(s.q0, dtype=float)
+        if np.any(self.q0 <= self.limits.q_min) or np.any(self.q0 >= self.limits.q_max):
+            raise ValueError("q0 is not strictly inside the position limits (with margin)")
+        self.base = base_parameters(spec, reduced=s.reduced) if base is None else base
+        self.capsules: CapsuleModel = capsule_model(spec, s.margins.clearance_m, s.margins.floor_height_m)
+        checked = np.isfinite(self.capsules.required)
+        self.checked = checked
+        self.required = self.capsules.required[checked] + s.collision_buffer_m
+        margins0 = self.capsules.margins(spec, self.q0[None])[0]
+        if np.any(margins0[checked] < 0):
+            k = np.flatnonzero(checked)[np.argmin(margins0[checked])]
+            pair = self.capsules.pair_names[k]
+            tool = (f" (the tool capsule: radius {spec.tool.radius_m:g} m, length {spec.tool.length_m:g} m)"
+                    if spec.tool is not None and "tool" in pair else "")
+            raise ValueError(f"the offset configuration q0 itself violates the collision clearance: pair "
+                             f"{pair}{tool} by {-margins0[k]:.3g} m")
+        T, w, L = s.duration_s, s.omega, s.harmonics
+        grid = lambda n: np.arange(n) * (T / n)  # noqa: E731  (periodic: t = T equals t = 0)
+        self.basis_criterion = FourierBasis.build(grid(s.criterion_samples), w, L)
+        self.basis_collision = FourierBasis.build(grid(s.collision_samples), w, L)
+        self.basis_limits = FourierBasis.build(grid(s.limit_samples), w, L)
+        self.n_free = 2 * (L - 1)
+        self.p_nominal = spec.nominal_params
+        # a tool's load: the torque penalty holds with and without it, as the dense check does
+        self.p_payload = None if payload is None else tool_body_vector(payload.body_params(spec))
+        if s.for_payload:
+            from urident.ident.payload import payload_reference_scales, payload_regressor
+
+            self.columns = lambda blocks: payload_regressor(spec, blocks)
+            self.scales = payload_reference_scales(spec)
+        else:
+            self.columns = lambda blocks: blocks[..., self.base.independent]
+            self.scales = reference_scales(spec, self.base)
+        self.n_columns = len(self.scales)
+        # the columns are a linear map of each sample's 78 regressor entries: Θ = blocks @ column_map
+        self.column_map = np.ascontiguousarray(self.columns(np.eye(N_PARAMS)[:, None, :])[:, 0, :])
+        self.evaluations = 0
+
+    # -- building blocks ---------------------------------------------------------------------
+    def project(self, x: np.ndarray, basis: FourierBasis | None = None) -> np.ndarray:
+        """Scale each joint's coefficients down to its kinematic limits on ``basis``'s grid."""
+        basis = self.basis_limits if basis is None else basis
+        dq, qd, qdd = basis.evaluate(x)
+        return x * joint_scale_factors(dq, qd, qdd, self.q0, self.limits)[..., None]
+
+    def objective(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(criterion, collision penalty, torque penalty), each (B,), of coefficient sets x (B, 6, K)."""
+        b = x.shape[0]
+        self.evaluations += b
+        dq, qd, qdd = self.basis_criterion.evaluate(x)
+        blocks = regressor_blocks(self.spec, (dq + self.q0).reshape(-1, 6), qd.reshape(-1, 6),
+                                  qdd.reshape(-1, 6))
+        tau = (blocks @ self.p_nominal).reshape(b, -1, 6)
+        theta = self.columns(blocks).reshape(b, -1, self.n_columns)
+        # A contiguous transpose keeps the batched product on the fast BLAS path.
+        gram = (np.ascontiguousarray(theta.transpose(0, 2, 1)) @ theta) / dq.shape[1]
+        log_cond, logdet = gram_criteria(gram, self.scales)
+        crit = log_cond if self.settings.criterion == "cond" else -logdet / self.n_columns
+        excess = np.maximum(np.abs(tau) / self.limits.tau_max - 1.0, 0.0)
+        if self.p_payload is not None:
+            loaded = tau + (blocks @ self.p_payload).reshape(b, -1, 6)
+            excess = np.maximum(excess, np.abs(loaded) / self.limits.tau_max - 1.0)
+        torque_pen = np.sum(excess ** 2, axis=(1, 2)) / tau.shape[1]
+        short = self.collision_shortfall(x)
+        collision_pen = np.sum((short / COLLISION_SCALE_M) ** 2, axis=(1, 2)) / len(self.basis_collision.t)
+        return crit, collision_pen, torque_pen
+
+    def collision_shortfall(self, x: np.ndarray) -> np.ndarray:
+        """(B, N, P) how far each checked pair is inside its required distance + buffer."""
+        dq = self.basis_collision.evaluate(x)[0]
+        d = self.capsules.distances(self.spec, (dq + self.q0).reshape(-1, 6))[:, self.checked]
+        return np.maximum(self.required - d, 0.0).reshape(x.shape[0], -1, d.shape[1])
+
+    def kinematic_penalty(self, x: np.ndarray) -> np.ndarray:
+        """(B,) mean squared relative excess over the position, velocity and acceleration limits
+        on the fine limit grid (smooth, unlike the projection, so BFGS sees no kinks)."""
+        dq, qd, qdd = self.basis_limits.evaluate(x)
+        excess = (np.maximum(dq / (self.limits.q_max - self.q0) - 1.0, 0.0) ** 2
+                  + np.maximum(-dq / (self.q0 - self.limits.q_min) - 1.0, 0.0) ** 2
+                  + np.maximum(np.abs(qd) / self.limits.qd_max - 1.0, 0.0) ** 2
+                  + np.maximum(np.abs(qdd) / self.limits.qdd_max - 1.0, 0.0) ** 2)
+        return np.sum(excess, axis=(1, 2)) / dq.shape[1]
+
+    def value(self, x: np.ndarray) -> np.ndarray:
+        """(B,) the penalised objective BFGS minimises."""
+        crit, coll, torque = self.objective(x)
+        return crit + PENALTY_WEIGHT * (coll + torque) + KINEMATIC_WEIGHT * self.kinematic_penalty(x)
+
+    def value_and_gradient(self, flat: np.ndarray) -> tuple[float, np.ndarray]:
+        """The objective (:meth:`value`) and its exact gradient in the free coefficients.
+
+        The criterion's derivative in the Gram matrix is ``W`` (from its eigenvectors), so its
+        derivative in the stacked columns is ``H = 2/m · Θ S⁻¹ W S⁻¹``; the regressor's derivatives
+        in each sample's state (q, q̇ by central differences, q̈ exactly: Θ is linear in it) are
+        18 extra regressor evaluations per sample, one batch, and each state is linear in the
+        coefficients (:class:`FourierBasis`). The torque penalty uses the same derivatives; the
+        kinematic penalty is differentiated analytically; the collision penalty by central
+        differences of the capsule distances in q, only at samples inside a required distance."""
+        x = flat.reshape(1, 6, self.n_free)
+        basis = self.basis_criterion
+        dq, qd, qdd = (a[0] for a in basis.evaluate(x))                   # (N, 6)
+        n = dq.shape[0]
+        states = perturbed_states(dq + self.q0, qd, qdd, STATE_STEP)
+        blocks = regressor_blocks(self.spec, *(s.reshape(-1, 6) for s in states)).reshape(
+            len(states[0]), n, 6, -1)
+        self.evaluations += 1
+        theta = blocks[0] @ self.column_map                                   # (N, 6, b)
+        flat_theta = theta.reshape(-1, self.n_columns)
+        inv = 1.0 / self.scales
+        lam = (flat_theta.T @ flat_theta) / n * inv[:, None] * inv[None, :]
+        eig, vec = scipy.linalg.eigh(lam, driver="evr")  # not LAPACK's evd: 30× slower with contended BLAS threads
+        eig = np.maximum(eig, 1e-300)
+        crit, weights = criterion_weights(eig, self.settings.criterion)
+        w_mat = (vec * weights) @ vec.T
+        # the derivative in the regressor's 78 columns of every sample: criterion, then torque
+        adjoint = ((2.0 / n) * (theta @ (inv[:, None] * w_mat * inv[None, :]))) @ self.column_map.T
+        tau = blocks[0] @ self.p_nominal                                      # (N, 6)
+        loads = [self.p_nominal] if self.p_payload is None else [self.p_nominal, self.p_nominal + self.p_payload]
+        excess = [np.maximum(np.abs(blocks[0] @ p) / self.limits.tau_max - 1.0, 0.0) for p in loads]
+        worst = np.argmax(np.stack(excess), axis=0)
+        torque_pen = float(np.sum(np.maximum.reduce(excess) ** 2)) / n
+        for k, p in enumerate(loads):
+            tau = blocks[0] @ p
+            g_tau = np.where(worst == k, 2.0 * excess[k] * np.sign(tau) / self.limits.tau_max, 0.0) / n
+            if np.any(g_tau):
+                adjoint += PENALTY_WEIGHT * g_tau[..., None] * p
+        # one contraction over every perturbed state, then differences in each state variable
+        d_state = state_derivatives(np.einsum("kjp,skjp->sk", adjoint, blocks), STATE_STEP)  # (18, N)
+        grad = chain(basis, d_state)
+
+        # kinematic penalty (linear in the coefficients)
+        kin, g_kin = self.kinematic_penalty_gradient(x[0])
+        # collision penalty
+        coll, g_coll = self.collision_penalty_gradient(x[0])
+        value = crit + PENALTY_WEIGHT * (coll + torque_pen) + KINEMATIC_WEIGHT * kin
+        grad = grad + PENALTY_WEIGHT * g_coll + KINEMATIC_WEIGHT * g_kin
+        return float(value), grad.ravel()
+
+    def kinematic_penalty_gradient(self, x: np.ndarray) -> tuple[float, np.ndarray]:
+        """:meth:`kinematic_penalty` of one coefficient set (6, K) and its gradient (6, K)."""
+        basis = self.basis_limits
+        dq, qd, qdd = (a[0] for a in basis.evaluate(x[None]))
+        up, down = self.limits.q_max - self.q0, self.q0 - self.limits.q_min
+        e_up = np.maximum(dq / up - 1.0, 0.0)
+        e_down = np.maximum(-dq / down - 1.0, 0.0)
+        e_vel = np.maximum(np.abs(qd) / self.limits.qd_max - 1.0, 0.0)
+        e_acc = np.maximum(np.abs(qdd) / self.limits.qdd_max - 1.0, 0.0)
+        n = dq.shape[0]
+        value = float(np.sum(e_up ** 2 + e_down ** 2 + e_vel ** 2 + e_acc ** 2)) / n
+        g_q = 2.0 * (e_up / up - e_down / down) / n
+        g_qd = 2.0 * e_vel * np.sign(qd) / self.limits.qd_max / n
+        g_qdd = 2.0 * e_acc * np.sign(qdd) / self.limits.qdd_max / n
+        grad = (np.einsum("kj,jkf->jf", g_q, basis.q) + np.einsum("kj,jkf->jf", g_qd, basis.qd)
+                + np.einsum("kj,jkf->jf", g_qdd, basis.qdd))
+        return value, grad
+
+    def collision_penalty_gradient(self, x: np.ndarray) -> tuple[float, np.ndarray]:
+        """The collision penalty of one coefficient set (6, K) and its gradient (6, K): central
+        differences of the capsule distances in each joint angle, at the samples inside a
+        required distance (+ buffer) only."""
+        basis = self.basis_collision
+        q = basis.evaluate(x[None])[0][0] + self.q0                           # (N, 6)
+        n = q.shape[0]
+        d = self.capsules.distances(self.spec, q)[:, self.checked]
+        short = np.maximum(self.required - d, 0.0)
+        rows = np.flatnonzero(np.any(short > 0, axis=1))
+        grad = np.zeros((6, self.n_free))
+        value = float(np.sum((short / COLLISION_SCALE_M) ** 2)) / n
+        if not len(rows):
+            return value, grad
+        h = STATE_STEP
+        step = np.concatenate([np.eye(6), -np.eye(6)]) * h                     # (12, 6)
+        qs = (q[rows][None] + step[:, None]).reshape(-1, 6)
+        dd = self.capsules.distances(self.spec, qs)[:, self.checked].reshape(12, len(rows), -1)
+        d_dq = (dd[:6] - dd[6:]) / (2 * h)                                     # (6, R, P)
+        g_d = -2.0 * short[rows] / COLLISION_SCALE_M ** 2 / n                               # (R, P)
+        g_q = np.einsum("rp,jrp->rj", g_d, d_dq)                               # (R, 6)
+        grad = np.einsum("rj,jrf->jf", g_q, basis.q[:, rows])
+        return value, grad
+
+    def shrink_to_collision_free(self, x: np.ndarray, factor: float = 0.85, steps: int = 30) -> np.ndarray:
+        """Scale each coefficient set (B, 6, K) towards q0 by factor**k, the smallest k that clears
+        the collision grid (with buffer); q0 is collision-free, so small enough always works."""
+        x = x.copy()
+        pending = np.arange(x.shape[0])
+        for _ in range(steps):
+            if not len(pending):
+                break
+            bad = np.any(self.collision_shortfall(x[pending]) > 0, axis=(1, 2))
+            pending = pending[bad]
+            x[pending] *= factor
+        return x
+
+    def trajectory(self, x: np.ndarray) -> FourierTrajectory:
+        return FourierTrajectory.from_free(x, self.settings.omega, self.q0, self.settings.duration_s)
+
+    def random_coefficients(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """``n`` random coefficient sets (n, 6, 2(L−1)), projected onto the kinematic limits.
+        Higher harmonics are drawn smaller (1/l), the usual spectrum of smooth excitation."""
+        L = self.settings.harmonics
+        weights = np.concatenate([1.0 / np.arange(2, L + 1)] * 2)
+        x = rng.standard_normal((n, 6, self.n_free)) * weights * self.limits.qd_max[:, None]
+        return self.project(x)
