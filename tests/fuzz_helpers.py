@@ -41,8 +41,8 @@ def assert_promise(code: int, out: str, err: str, before: dict, after: dict) -> 
     if code == 2:
         assert len(errors) == 1 and err.rstrip("\n").splitlines()[-1] == errors[0], err[-500:]
         assert errors[0].startswith("urident: error: "), errors[0]
-    else:
-        assert not errors, err[-500:]
+    else:  # notes and warnings may be said; no error
+        assert not [e for e in errors if e.startswith("urident: error")], err[-500:]
     for mark in THIRD_PARTY_MARKS:
         assert mark not in out and mark not in err, (mark, out[-300:], err[-300:])
     changed = [str(p) for p, state in before.items() if after.get(p) != state]

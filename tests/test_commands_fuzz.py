@@ -281,7 +281,7 @@ def test_simulator_models_libraries_cannot_read(data, capfd, monkeypatch):
     work = data / "mjcwd"
     work.mkdir(exist_ok=True)
     monkeypatch.chdir(work)
-    _one_line(capfd, ["gap", "--robot", "ur5", "--sim", mjcf, "--valid", data / "valid.csv"], "NaN")
+    _one_line(capfd, ["gap", "--robot", "ur5", "--sim", mjcf, "--valid", data / "valid.csv"], "shoulder_pan_link")
     assert list(work.iterdir()) == []
 
 
