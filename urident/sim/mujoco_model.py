@@ -121,6 +121,14 @@ def load_spec(path: str | Path):
     comes from such a mesh; MujocoModelError naming the file otherwise."""
     mujoco = import_mujoco()
     path = Path(path)
+    with _warnings_kept(mujoco) as said:
+        spec, model, missing = _load_spec(mujoco, path)
+    if said:  # a NaN in the XML, for one
+        raise MujocoModelError(f"{path}: MuJoCo warns: {said[0]}")
+    return spec, model, missing
+
+
+def _load_spec(mujoco, path: Path):
     try:
         spec = mujoco.MjSpec.from_file(str(path))
     except ValueError as exc:
@@ -196,9 +204,14 @@ def spec_to_xml(spec) -> str:
     """The MJCF text of ``spec`` (compiled first, as MuJoCo's writer needs). MuJoCo writes
     ``angle="radian"`` with the elements' compiled values but the default classes' joint angles as
     given: with ``angle="degree"`` those are turned into radians here (``spec`` is changed)."""
+    mujoco = import_mujoco()
+    with _warnings_kept(mujoco):  # what it says went into the diagnosis already: not to the cwd
+        return _spec_to_xml(mujoco, spec)
+
+
+def _spec_to_xml(mujoco, spec) -> str:
     import xml.etree.ElementTree as ET
 
-    mujoco = import_mujoco()
     try:
         spec.compile()
         text = spec.to_xml()
