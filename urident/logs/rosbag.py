@@ -590,7 +590,10 @@ def _effort_unit(spec, t, q, qd, effort) -> tuple[str | None, str]:
     moving = np.flatnonzero(np.max(np.abs(qd), axis=1) >= MOVING_RAD_S)
     if moving.size < MIN_MOVING:
         return None, f"fewer than {MIN_MOVING} moving messages to tell A from N·m"
-    qdd = np.gradient(qd, t, axis=0) if t.size > 1 else np.zeros_like(qd)
+    # on the nominal period, not the stamps: receive times bunch messages (DDS batching), and a
+    # derivative over their near-zero intervals is noise
+    period = nominal_period(t) if t.size > 1 else 0.0
+    qdd = np.gradient(qd, axis=0) / period if period > 0 else np.zeros_like(qd)
     kernel = np.ones(9) / 9.0  # the differentiated velocity's noise, smoothed over ~9 samples
     qdd = np.column_stack([np.convolve(qdd[:, j], kernel, mode="same") for j in range(N_JOINTS)])
     index = moving[np.linspace(0, moving.size - 1, min(moving.size, 2000)).astype(int)]
