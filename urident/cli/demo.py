@@ -159,7 +159,11 @@ def run_demo(root: Path = Path("logs"), quick: bool = False, seed: int = 0,
             call(["run", "--robot", robot, "--host", host, "--trajectory", str(trajectory),
                   "--out", str(logs[kind]), "--config", str(config), "--yes",
                   "--save", str(directory / f"{kind}_live.rrd")])
-        step("stopping the simulated controller")
+        # the last run's check that its program stays stopped must end before the controller does
+        from urident.session.handover import controller_turn
+
+        with controller_turn(host, say):
+            step("stopping the simulated controller")
     if sim.returncode not in (0, None):
         say(f"warning: the simulated controller exited with code {sim.returncode}")
 
