@@ -228,7 +228,7 @@ def check_log_usable(recording: Recording, allow_aborted: bool = False,
 def log_identity(path: str | Path, rows: tuple[int, int] | None) -> tuple[str, tuple[int, int] | None]:
     """(content hash, rows) of a log as a command reads it: two names of one content (a copy, a
     link) with the same rows are the same data."""
-    from .sidecar import sha256_file
+    from urident.logs.sidecar import sha256_file
 
     p = Path(path)
     try:
