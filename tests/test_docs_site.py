@@ -104,6 +104,15 @@ def test_docs_command_selection():
     assert all("--host" not in c for _, c in keep)
     assert any("--host" in c for c in skipped)  # the live-arm guide is read, and skipped
     assert not any(c.startswith("urident excite") for _, c in keep)
+    # the commands that left the README when it became a front page run here
+    assert any(c.startswith("urident gap --robot ur10e") for _, c in keep)
+    assert any(c.startswith("urident identify logs/sample_ident.csv") for _, c in keep)
+    assert any(c.startswith("urident payload $D/ur-20_01_31-load.csv") for _, c in keep)
+    assert any(c.startswith("urident identify logs/ident.csv") for c in skipped)
+    assert all("logs/tool.csv" not in c for _, c in keep)
+    joined = [c for page in pages() for block in file_blocks(page) for _, c in block if "--valid-rows 700-4200" in c]
+    assert joined and all("\\" not in c for c in joined)
+    assert len({c for _, c in keep}) == len(keep)  # each command runs once
 
 
 @pytest.mark.skipif(not (SHARED / "data").is_dir(), reason="needs ../shared/data")

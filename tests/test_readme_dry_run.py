@@ -1,9 +1,9 @@
-"""The README's dry run with urident's simulated controller works exactly as written.
+"""The dry run with urident's simulated controller works exactly as written.
 
-The commands are parsed out of the README (the first ``bash`` block after "urident's own simulated
-controller") and run as a user at a shell would: a line ending in ``&`` starts a background job
-(the next line is typed once it printed its ``listening on`` line), ``kill %N`` ends job N, any
-other line must exit 0. They run in a scratch directory holding a copy of ``experiments/``, so the
+The commands are parsed out of docs/getting-started.md, where the README's documentation links
+lead (the first ``bash`` block after "urident's own simulated controller"), and run as a user at a
+shell would: a line ending in ``&`` starts a background job (the next line is typed once it printed
+its ``listening on`` line), ``kill %N`` ends job N, any other line must exit 0. They run in a scratch directory holding a copy of ``experiments/``, so the
 log lands there; ``urident`` is this tree's ``python -m urident.cli.main``.
 """
 
@@ -24,7 +24,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def dry_run_commands() -> list[str]:
-    blocks = bash_blocks(after="urident's own simulated controller")
+    blocks = bash_blocks(path=ROOT / "docs" / "getting-started.md", after="urident's own simulated controller")
     assert blocks, "no bash block after the simulated-controller paragraph"
     return [command for _, command in block_commands(blocks[0])]
 
@@ -36,7 +36,7 @@ def argv(words: list[str]) -> list[str]:
 
 def test_readme_dry_run_as_written(tmp_path):
     shutil.copytree(ROOT / "experiments", tmp_path / "experiments")
-    (tmp_path / "logs").mkdir()  # as in the checkout, where the README runs
+    (tmp_path / "logs").mkdir()  # as in the checkout, where the page's commands run
     jobs: list[subprocess.Popen] = []
     ran = []
     try:
