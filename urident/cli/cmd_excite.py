@@ -14,7 +14,7 @@ MAX_DURATION_S = 3600.0
 SAMPLES_PER_PERIOD = 10  # the highest harmonic gets at least this many controller ticks
 # --for-payload: the inertia needs acceleration, so two base periods in 30 s (2.7 times the
 # frequency of one in 20 s); the wrist then runs near its velocity limit, kept at 0.7 of it and
-# within payload_velocity_cap (servoJ's lag on a fast wrist). Measured with benchmarks/payload.py (README).
+# within payload_velocity_cap (servoJ's lag on a fast wrist). Measured with benchmarks/payload.py (docs/benchmarks.md).
 PAYLOAD_PERIODS = 2
 PAYLOAD_DURATION_S = 30.0
 PAYLOAD_VELOCITY_FRACTION = 0.7

@@ -1,5 +1,5 @@
 """The catalogue: every effect by its stable snake_case name (part of the public interface: the
-gap diagnosis reports these names and the README lists them)."""
+gap diagnosis reports these names and the documentation lists them: docs/concepts/gap-diagnosis.md)."""
 
 from __future__ import annotations
 
