@@ -84,11 +84,6 @@ def sigmoid_offset(qd: np.ndarray, eps: float) -> np.ndarray:
     return np.tanh(np.asarray(qd, dtype=float) / eps) ** 2
 
 
-def quadratic_viscous(qd: np.ndarray) -> np.ndarray:
-    qd = np.asarray(qd, dtype=float)
-    return qd * np.abs(qd)
-
-
 def position_friction(q: np.ndarray, coulomb_state: np.ndarray, harmonic: float) -> tuple[np.ndarray, np.ndarray]:
     """(z·cos(k q), z·sin(k q)): Coulomb friction modulated by the position ``q`` [rad] at harmonic
     k (k periods per joint revolution), e.g. a flexspline's once- or twice-per-turn variation."""
