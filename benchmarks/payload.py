@@ -107,7 +107,7 @@ def main() -> None:
     args = ap.parse_args()
     if args.repeats < 1:
         ap.error("--repeats must be at least 1")
-    from urident.ident.payload import Payload
+    from urident.model.payload import Payload
     from urident.model import load_robot
 
     spec = load_robot(args.robot)

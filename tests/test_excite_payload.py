@@ -147,7 +147,7 @@ TEN_KG = dict(mass_kg=10.0, com_m=[0.0, 0.05, 0.1], inertia_kg_m2=np.diag([0.08,
 
 def test_a_payload_enters_the_torque_check_and_the_file_records_it(tmp_path, capsys):
     from urident.excitation import trajectory_document, write_trajectory
-    from urident.ident.payload import Payload
+    from urident.model.payload import Payload
     from urident.session.runner import plan_motion
 
     path = _low_torque_ident(tmp_path)
@@ -185,7 +185,7 @@ def test_a_payload_enters_the_torque_check_and_the_file_records_it(tmp_path, cap
 
 def test_a_payload_above_the_rated_one_is_refused(tmp_path, capsys):
     from urident.excitation import trajectory_document, write_trajectory
-    from urident.ident.payload import Payload
+    from urident.model.payload import Payload
 
     loaded = load_trajectory(IDENT)
     for argv in (["check-trajectory", str(IDENT), "--payload-mass", "12.6"],

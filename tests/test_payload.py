@@ -15,7 +15,7 @@ import pytest
 import yaml
 
 from urident.cli.main import main
-from urident.ident.payload import Payload, flange_map
+from urident.model.payload import Payload, flange_map
 from urident.ident.payload_file import load_payload, save_payload
 from urident.model import load_robot
 from urident.model.parameters import body_params
@@ -109,7 +109,7 @@ def test_params_without_base_parameters_is_bad_input(runs, capsys):
 
 
 def test_bad_payload_files(tmp_path):
-    from urident.ident.payload import PayloadError
+    from urident.model.payload import PayloadError
 
     p = tmp_path / "p.yaml"
     save_payload(Payload("ur10e", 1.0, [0, 0, 0.05], np.eye(3) * 1e-3), p)
@@ -135,7 +135,7 @@ def _validate(runs, capsys, *extra):
 
 def test_validate_view_and_gap_with_a_payload(runs, capsys):
     from urident.ident import load_params, predict_recordings
-    from urident.ident.payload import Payload
+    from urident.model.payload import Payload
     from urident.logs import load_log
 
     spec = load_robot("ur5")

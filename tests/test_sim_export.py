@@ -214,7 +214,7 @@ def test_export_payload_is_a_body_on_the_flange_in_mujoco_and_pinocchio(params_f
     import mujoco
 
     from urident.ident import load_params, predict_recordings
-    from urident.ident.payload import Payload
+    from urident.model.payload import Payload
     from urident.ident.payload_file import save_payload
     from urident.logs import load_log
     from urident.model import load_robot

@@ -12,7 +12,8 @@ import pytest
 rtde_control = pytest.importorskip("rtde_control")
 rtde_receive = pytest.importorskip("rtde_receive")
 
-from urident.ident.payload import Payload, payload_torque  # noqa: E402
+from urident.ident.payload import payload_torque  # noqa: E402
+from urident.model.payload import Payload  # noqa: E402
 from urident.model import load_robot  # noqa: E402
 from urident.simcontroller.process import SimControllerProcess  # noqa: E402
 

@@ -7,16 +7,19 @@ command line starts fast::
     ident = ur.identify(["ident.csv"], robot="ur10e")
 """
 
-from urident.version import __version__
+from importlib import import_module
 
-_API = ("Identification", "Validation", "check_trajectory", "diagnose_gap", "identify", "load_log",
-        "validate")
-__all__ = ["__version__", *_API]
+from urident.version import __version__
 
 
 def __getattr__(name: str):
-    if name in _API:
-        from urident import api
-
-        return getattr(api, name)
+    """The API's names (:data:`urident.api.__all__`), loaded on first use."""
+    if not name.startswith("_") and name != "api":
+        api = import_module("urident.api")
+        if name in api.__all__:
+            return getattr(api, name)
     raise AttributeError(f"module 'urident' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *import_module("urident.api").__all__})

@@ -29,8 +29,8 @@ from urident.errors import ConfigError
 from urident.logs import Recording, load_log
 
 METHODS = ("ols", "bounded", "consistent")
-__all__ = ["Identification", "Validation", "check_trajectory", "diagnose_gap", "identify",
-           "load_log", "validate"]
+__all__ = ["Identification", "Validation", "calibrate_drive_gains", "check_trajectory", "diagnose_gap",
+           "identify", "identify_payload", "load_log", "validate"]
 
 
 def _spec(robot):
@@ -126,7 +126,7 @@ def identify(logs, robot, method: str = "ols", preset: str | None = None, *, mod
     ``weighting`` and ``select_dahl_rad`` override it. ``preprocess``: a
     :class:`urident.ident.PreprocessConfig` (default: rest trimmed). ``drive_gains``: six joint-side
     gains i_G·k [N·m/A], a GAINS.yaml path, or None for the robot file's. ``payload``: a
-    :class:`urident.ident.payload.Payload` or a payload file the logs carry (its torque is removed).
+    :class:`urident.model.payload.Payload` or a payload file the logs carry (its torque is removed).
     ``log_options``: keyword arguments of :func:`urident.logs.load_log` for paths. ``sessions``:
     each log is a session of its own; a per-session torque offset and friction scale are kept per
     joint where blocked CV says they pay (:func:`urident.ident.sessions.fit_sessions`)."""
@@ -326,6 +326,62 @@ def validate(params, logs, robot=None, *, payload=None, drive_gains=None,
     if payload_name is None and isinstance(payload, (str, Path)):
         payload_name = str(payload)
     return Validation(tuple(results), tuple(n for n, _ in models), payload_name, tuple(shifts))
+
+
+# --------------------------------------------------------------------------- payloads, drive gains
+def _named(logs, robot: str, options: Mapping | None) -> list[tuple[str, Recording]]:
+    """(name, Recording) per log: a path's name is the path, a Recording's its source file."""
+    if isinstance(logs, (str, Path, Recording)):
+        logs = [logs]
+    named = []
+    for k, log in enumerate(logs):
+        rec = log if isinstance(log, Recording) else load_log(log, robot=robot, **dict(options or {}))
+        source = log if not isinstance(log, Recording) else (log.source or f"<recording {k + 1}>")
+        named.append((str(source), rec))
+    return named
+
+
+def identify_payload(logs, params, robot=None, *, unloaded=None, mass_range=None, drive_gains=None,
+                     log_options: Mapping | None = None, params_label: str | None = None,
+                     unloaded_labels: Sequence[str] | None = None):
+    """A tool's mass, centre of mass and inertia (UR's flange frame) from ``logs`` recorded with it
+    mounted, the arm's identified ``params`` (an :class:`Identification`, IdentifiedModel or
+    parameters file) fixed. ``unloaded``: runs of the same motion without the tool (a tare,
+    needed for the inertia; each must be a loaded log's motion). ``mass_range``: (low, high) kg.
+    Returns a :class:`urident.ident.payload_fit.PayloadIdentification` (``payload`` is the
+    :class:`urident.model.payload.Payload`; ``save()`` writes the payload file)."""
+    from urident.ident import load_params
+    from urident.ident.payload_fit import fit_payload
+
+    if isinstance(params, Identification):
+        label, arm = f"<identified {params.method}>", params.model
+    elif isinstance(params, (str, Path)):
+        label, arm = str(params), load_params(params)
+    else:
+        label, arm = f"<{getattr(params, 'method', 'parameters')}>", params
+    spec = _spec(robot or arm.robot)
+    loaded = _named(logs, spec.name, log_options)
+    tare = _named(unloaded, spec.name, log_options) if unloaded else []
+    return fit_payload(arm, spec, loaded, tare, mass_range=mass_range, drive_gains=drive_gains,
+                       params_label=params_label or label, tare_labels=unloaded_labels)
+
+
+def calibrate_drive_gains(without, with_, robot, payload, *, reduced: bool = False,
+                          log_options: Mapping | None = None):
+    """The six joint drive gains i_G·k [N·m/A] from runs ``without`` and ``with_`` a load of known
+    mass and centre of mass (``payload``: a :class:`urident.model.payload.Payload` or payload
+    file; a point mass unless it carries an inertia). The logs' motor currents are used whatever
+    torques they also carry. Returns a :class:`urident.ident.gains_fit.DriveGainCalibration`
+    (``save()`` writes the GAINS.yaml every ``drive_gains=`` and ``--drive-gains`` accept)."""
+    from urident.ident.gains_fit import calibrate_gains
+
+    from urident.logs.recording import with_signal
+
+    spec = _spec(robot)
+    options = {**dict(log_options or {}), "signal": "current"}
+    runs = [[(name, with_signal(rec, "current", name)) for name, rec in _named(logs, spec.name, options)]
+            for logs in (without, with_)]
+    return calibrate_gains(spec, runs[0], runs[1], _payload(payload, spec), reduced=reduced)
 
 
 # --------------------------------------------------------------------------- gap, trajectories

@@ -9,7 +9,6 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import glob
 import sys
 from pathlib import Path
@@ -169,21 +168,8 @@ def load_log_from_args(
         format=getattr(args, "log_format", None),
         topic=getattr(args, "log_topic", None),
         effort=getattr(args, "log_effort", None),
+        signal=getattr(args, "log_signal", None),
     )
-    signal = getattr(args, "log_signal", None)
-    if signal is not None:  # read by urident.ident.torque.torque_signal
-        metadata = {**recording.metadata, "signal": signal}
-        if signal == "current":
-            if recording.metadata.get("current_from_torque") and \
-                    recording.metadata.get("torque_kind") == "compensated":
-                raise LogFormatError(f"{path}: --signal current: its effort is a gravity-compensated "
-                                     "torque and carries no motor current; pass --signal compensated")
-            recording = dataclasses.replace(recording, tau=None, metadata=metadata)
-        elif recording.tau is None:
-            raise LogFormatError(f"{path}: --signal {signal}: the log carries no joint torque "
-                                 "(actual_current_as_torque, or a bag's torque effort)")
-        else:
-            recording = dataclasses.replace(recording, metadata=metadata)
     line = describe_dropped(recording)
     if line:
         print(f"urident: warning: {line}", file=report or sys.stderr)

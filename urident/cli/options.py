@@ -446,7 +446,7 @@ def point_payload(args: argparse.Namespace, spec):
         return None
     import numpy as np
 
-    from urident.ident.payload import Payload
+    from urident.model.payload import Payload
 
     com = (0.0, 0.0, 0.0) if args.payload_com is None else args.payload_com
     spec.check_rated_payload(args.payload_mass, "--payload-mass")

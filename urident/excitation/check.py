@@ -153,7 +153,7 @@ def check_trajectory(spec: RobotSpec, trajectory: Trajectory, rate_hz: float | N
     """Check ``trajectory`` on the grid ``k / rate_hz`` (default: the robot's controller rate).
     Pure: returns a report; call :meth:`CheckReport.raise_if_unsafe` to turn it into an error.
     ``collision_backend`` 'coal' (Pinocchio, the reference) or 'numpy' (same numbers, faster).
-    ``payload``: a tool on the flange (:class:`urident.ident.payload.Payload`); the torque check
+    ``payload``: a tool on the flange (:class:`urident.model.payload.Payload`); the torque check
     then holds with and without it (module doc)."""
     rate = float(spec.controller_rate_hz if rate_hz is None else rate_hz)
     limits = Limits.from_robot(spec) if limits is None else limits

@@ -57,6 +57,7 @@ from urident.version import __version__
 from urident.errors import ConfigError
 from urident.excitation.constraints import Limits, Margins
 from urident.excitation.fourier import FourierTrajectory
+from urident.model.payload import Payload
 from urident.model.robot import RobotSpec, ToolCapsule, load_robot
 from urident.yamlio import Fields, load_yaml
 
@@ -96,7 +97,7 @@ class TrajectoryFile:
     optimization: dict[str, Any] = field(default_factory=dict)
     criteria: dict[str, Any] = field(default_factory=dict)
     check: dict[str, Any] = field(default_factory=dict)
-    payload: Any = None              # urident.ident.payload.Payload the torque checks included, or None
+    payload: Payload | None = None   # the tool the torque checks included
 
     @property
     def criterion(self) -> str | None:
@@ -120,10 +121,10 @@ def trajectory_document(robot: str, trajectory: FourierTrajectory, limits: Limit
                         optimization: dict[str, Any] | None = None,
                         criteria: dict[str, Any] | None = None,
                         check: dict[str, Any] | None = None,
-                        tool: ToolCapsule | None = None, payload: Any = None) -> dict[str, Any]:
+                        tool: ToolCapsule | None = None, payload: Payload | None = None) -> dict[str, Any]:
     """The YAML document (plain Python types) for a trajectory file (``tool``: the mounted tool
     its checks include; ``payload``: the load its torque checks include, a
-    :class:`urident.ident.payload.Payload`)."""
+    :class:`urident.model.payload.Payload`)."""
     omega = trajectory.omega
     shared = bool(np.all(omega == omega[0]))
     m = limits.margins
@@ -225,7 +226,6 @@ def parse_trajectory_document(data: Any, path: Path | None = None) -> Trajectory
 
     payload = None
     if data.get("payload") is not None:
-        from urident.ident.payload import Payload
         from urident.ident.payload_file import inertial_fields
 
         section = r.mapping(data["payload"], "payload")

@@ -261,7 +261,7 @@ def optimize_excitation(spec: RobotSpec, settings: ExcitationSettings | None = N
                         progress: Callable[[str], None] | None = None,
                         base: BaseParameters | None = None, payload=None) -> ExcitationResult:
     """Optimise an excitation trajectory for ``spec``; reproducible for a given ``settings.seed``
-    (unless ``settings.budget_s`` stops it). ``payload`` (:class:`urident.ident.payload.Payload`):
+    (unless ``settings.budget_s`` stops it). ``payload`` (:class:`urident.model.payload.Payload`):
     the torque limits hold with it too. ``progress`` gets a message after each stage, and with it a
     progress line is written to a terminal's stderr while the starts run. The starts run in spawned
     processes: a script calling this needs the ``if __name__ == "__main__":`` guard."""

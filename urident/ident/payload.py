@@ -1,13 +1,6 @@
-"""A payload on the tool flange: its ten inertial parameters, estimation with the arm fixed, and
-its torque on the joints.
-
-Frames. A payload is written in UR's tool flange frame F (the robot file's ``tool`` frame: origin
-on the flange face, z out of the flange), as ``set_target_payload`` takes it: mass m, centre of
-mass c (F), inertia I_c about the centre of mass with F's axes. Its torque adds to the last
-body's (:data:`urident.model.parameters.TOOL_BODY`, frame K_6), so the flange-frame ten-vector
-φ_F = (m, m·c, J_F about F's origin) maps linearly to K_6: with r_K6 = t + R r_F,
-h_K6 = m t + R h_F and J_K6 = R J_F Rᵀ − m S(t)S(t) − S(t)S(R h_F) − S(R h_F)S(t) (S: cross-product
-matrix). :func:`flange_map` is that 10×10 matrix L.
+"""A payload's ten inertial parameters estimated with the arm fixed, and its torque on the joints.
+The :class:`~urident.model.payload.Payload` type, its flange frame and the map L to the last
+body's parameters are :mod:`urident.model.payload`'s.
 
 Estimation (:func:`estimate_payload`): the arm's parameters fixed, the residual
 τ_measured − τ_arm = Y_6 L φ_F is linear in φ_F (Y_6: the regressor columns of body 6). Which of
@@ -24,15 +17,14 @@ the constraints need it).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from urident.errors import ConfigError
 from urident.ident.estimate import joint_correlation_inflation
+from urident.model.parameters import inertia_matrix
+from urident.model.payload import PAYLOAD_FIELDS, Payload, PayloadError, flange_map, from_flange_vector
 
-#: Names of the flange-frame ten-vector φ_F (first moments m·c, inertia about the flange origin).
-PAYLOAD_FIELDS = ("m", "mcx", "mcy", "mcz", "Jxx", "Jyy", "Jzz", "Jyz", "Jxz", "Jxy")
 #: A parameter whose σ exceeds its tolerance is reported as not identifiable: mass 5 % (at least
 #: 0.02 kg), first moments 5 mm × mass, inertias 15 % of the smallest principal inertia about the
 #: centre of mass at INERTIA_SIGMAS σ (≥ 1e-5 kg·m²), so an inertia reported is within 15 % on
@@ -51,89 +43,6 @@ TARE_SPAN_TOL = 0.05
 #: A tare is laid over a loaded log at the time offset (within ± this many sample periods, in
 #: quarter periods) that matches their joint positions best: logs started by hand are not in step.
 TARE_SHIFT_PERIODS = 3
-
-
-class PayloadError(ConfigError):
-    """Bad payload input: a non-positive mass, no wrist motion, a payload for another robot."""
-
-
-@dataclass(frozen=True)
-class Payload:
-    """A payload in UR's tool flange frame (module doc). ``sigma``: the same keys' standard
-    deviations (NaN where fixed); ``identifiable``: names of the parameters the data determined."""
-
-    robot: str
-    mass_kg: float
-    com_m: np.ndarray              # (3,) flange frame
-    inertia_kg_m2: np.ndarray      # (3, 3) about the centre of mass, flange axes
-    sigma: dict = field(default_factory=dict)
-    identifiable: tuple[str, ...] = PAYLOAD_FIELDS
-    method: str = "given"
-    info: dict = field(default_factory=dict)
-
-    def __post_init__(self) -> None:
-        if not (np.isfinite(self.mass_kg) and self.mass_kg > 0):
-            raise PayloadError(f"payload mass must be positive, not {self.mass_kg:g} kg")
-        object.__setattr__(self, "com_m", np.asarray(self.com_m, dtype=float).reshape(3))
-        inertia = np.asarray(self.inertia_kg_m2, dtype=float).reshape(3, 3)
-        if not (np.all(np.isfinite(self.com_m)) and np.all(np.isfinite(inertia))):
-            raise PayloadError(f"payload centre of mass and inertia must be finite, not {self.com_m.tolist()}, "
-                               f"{inertia.tolist()}")
-        object.__setattr__(self, "inertia_kg_m2", 0.5 * (inertia + inertia.T))
-
-    @property
-    def flange_vector(self) -> np.ndarray:
-        """φ_F: (m, m·c, J about the flange origin as Jxx, Jyy, Jzz, Jyz, Jxz, Jxy)."""
-        c = self.com_m
-        j = self.inertia_kg_m2 + self.mass_kg * (c @ c * np.eye(3) - np.outer(c, c))
-        return np.r_[self.mass_kg, self.mass_kg * c, j[0, 0], j[1, 1], j[2, 2], j[1, 2], j[0, 2], j[0, 1]]
-
-    def body_params(self, spec) -> np.ndarray:
-        """The payload's ten paper parameters about K_6 (add to :data:`TOOL_BODY`)."""
-        return flange_map(spec) @ self.flange_vector
-
-    def urscript(self) -> str:
-        """``set_target_payload(m, [cx, cy, cz], [Ixx, Iyy, Izz, Ixy, Ixz, Iyz])``."""
-        from urident.model.parameters import inertia_vector
-
-        inertia = inertia_vector(self.inertia_kg_m2, "ur")
-        return (f"set_target_payload({self.mass_kg:.4f}, [{', '.join(f'{v:.5f}' for v in self.com_m)}], "
-                f"[{', '.join(f'{v:.6f}' for v in inertia)}])")
-
-    def describe(self) -> str:
-        c = self.com_m * 1000
-        ev = np.linalg.eigvalsh(self.inertia_kg_m2)
-        return (f"mass {self.mass_kg:.4f} kg, centre of mass [{c[0]:.1f}, {c[1]:.1f}, {c[2]:.1f}] mm "
-                f"(flange frame), principal inertias [{', '.join(f'{v:.5f}' for v in ev)}] kg·m²")
-
-
-def _skew(v) -> np.ndarray:
-    x, y, z = v
-    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-
-
-def _tensor(j6) -> np.ndarray:
-    """J from φ_F's six inertia entries (PAYLOAD_FIELDS' order)."""
-    from urident.model.parameters import inertia_matrix
-
-    return inertia_matrix(j6, "flange")
-
-
-def _to_body(spec, phi: np.ndarray) -> np.ndarray:
-    """φ_F → the paper's ten parameters about K_6 (module doc)."""
-    t = np.asarray(spec.tool_xyz, dtype=float)
-    r = np.asarray(spec.tool_rotation, dtype=float)
-    m, h = phi[0], r @ phi[1:4]
-    jf = _tensor(phi[4:10])
-    st, sh = _skew(t), _skew(h)
-    j = r @ jf @ r.T - m * st @ st - st @ sh - sh @ st
-    hk = m * t + h
-    return np.array([m, hk[0], hk[1], hk[2], j[0, 0], j[1, 1], j[2, 2], -j[1, 2], -j[0, 2], -j[0, 1]])
-
-
-def flange_map(spec) -> np.ndarray:
-    """L (10×10): the paper's K_6 parameters = L φ_F (module doc)."""
-    return np.column_stack([_to_body(spec, e) for e in np.eye(10)])
 
 
 def payload_regressor(spec, blocks: np.ndarray) -> np.ndarray:
@@ -172,17 +81,6 @@ def payload_condition(spec, q, qd, qdd) -> float:
     a = payload_regressor(spec, regressor_blocks(spec, q, qd, qdd)).reshape(-1, 10)
     sv = np.linalg.svd(a / payload_reference_scales(spec), compute_uv=False)
     return float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
-
-
-def from_flange_vector(robot: str, phi: np.ndarray, **kw) -> Payload:
-    phi = np.asarray(phi, dtype=float)
-    m = float(phi[0])
-    if not m > 0:
-        raise PayloadError(f"estimated payload mass is {m:.4g} kg, not positive: the logs do not "
-                           "determine a payload (is one mounted, and do the logs move the arm?)")
-    c = phi[1:4] / m
-    inertia = _tensor(phi[4:10]) - m * (c @ c * np.eye(3) - np.outer(c, c))
-    return Payload(robot, m, c, inertia, **kw)
 
 
 def payload_torque(spec, payload: Payload, q, qd, qdd) -> np.ndarray:
@@ -332,7 +230,7 @@ def _tolerances(phi: np.ndarray) -> np.ndarray:
     m = max(abs(phi[0]), 0.01)
     c = phi[1:4] / m
     # about the centre of mass: the flange-origin inertia's m·c² part is the first moments' business
-    ic = _tensor(phi[4:10]) - m * (c @ c * np.eye(3) - np.outer(c, c))
+    ic = inertia_matrix(phi[4:10], "flange") - m * (c @ c * np.eye(3) - np.outer(c, c))
     smallest = max(float(np.linalg.eigvalsh(ic)[0]), 0.0)
     tol = np.empty(10)
     tol[0] = max(TOLERANCES["mass_rel"] * m, TOLERANCES["mass_abs"])
@@ -649,7 +547,7 @@ def _psd_repair(phi: np.ndarray) -> np.ndarray:
     file's reader requires."""
     m = phi[0]
     c = phi[1:4] / m
-    ic = _tensor(phi[4:10]) - m * (c @ c * np.eye(3) - np.outer(c, c))
+    ic = inertia_matrix(phi[4:10], "flange") - m * (c @ c * np.eye(3) - np.outer(c, c))
     w, v = np.linalg.eigh(0.5 * np.trace(ic) * np.eye(3) - ic)
     second = (v * np.clip(w, 0, None)) @ v.T
     d = np.trace(second) * np.eye(3) - second - ic
@@ -661,6 +559,6 @@ def _sigma_dict(phi: np.ndarray, sigma: np.ndarray) -> dict:
     m = phi[0]
     s_m = sigma[0]
     s_c = np.sqrt((sigma[1:4] / m) ** 2 + (phi[1:4] * s_m / m ** 2) ** 2)
-    s_j = _tensor(sigma[4:10])
+    s_j = inertia_matrix(sigma[4:10], "flange")
     return {"mass_kg": float(s_m), "com_m": [float(v) for v in s_c],
             "inertia_kg_m2": [[float(v) for v in row] for row in s_j]}

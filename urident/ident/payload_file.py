@@ -23,7 +23,7 @@ import numpy as np
 import yaml
 
 from urident.fileio import write_text_atomic
-from urident.ident.payload import PAYLOAD_FIELDS, Payload, PayloadError
+from urident.model.payload import PAYLOAD_FIELDS, Payload, PayloadError
 from urident.yamlio import Fields, key_path, load_yaml
 
 FORMAT = "urident-payload"

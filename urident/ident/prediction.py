@@ -21,7 +21,7 @@ across batches; it gives the same torques as ``predict_recordings(..., causal=Tr
 log. ``urident validate``, ``gap --params``, ``view``, ``run``'s live view and the demo (through
 those commands) all predict here; ``urident.viz`` only draws the arrays.
 
-``payload`` (:class:`urident.ident.payload.Payload`, e.g. from ``load_payload``): a tool on the
+``payload`` (:class:`urident.model.payload.Payload`, e.g. from ``load_payload``): a tool on the
 flange whose torque (:func:`urident.ident.payload.payload_torque`, rigid on body 6) adds to the
 arm's prediction; the arm's parameters are of the arm without it.
 """
@@ -99,7 +99,8 @@ class Prediction:
 def _check_payload(payload, spec) -> None:
     if payload is None:
         return
-    from urident.ident.payload import Payload, check_robot
+    from urident.ident.payload import check_robot
+    from urident.model.payload import Payload
 
     if not isinstance(payload, Payload):
         raise ConfigError(f"payload must be a Payload (urident.ident.payload), not {type(payload).__name__}")

@@ -102,7 +102,7 @@ def _inertial(indent: str, m: float, com, ic) -> list[str]:
 
 
 def payload_link(payload, parent: str = "tool0", indent: str = "  ") -> list[str]:
-    """URDF lines of ``payload`` (a :class:`urident.ident.payload.Payload`, flange frame) as a link
+    """URDF lines of ``payload`` (a :class:`urident.model.payload.Payload`, flange frame) as a link
     ``payload`` on a fixed joint at ``parent`` (the flange frame ``tool0``)."""
     return ([f'{indent}<link name="payload">',
              *_inertial(indent + "  ", payload.mass_kg, payload.com_m, payload.inertia_kg_m2),
@@ -114,7 +114,7 @@ def payload_link(payload, parent: str = "tool0", indent: str = "  ") -> list[str
 def to_urdf(spec, standard: np.ndarray, name: str | None = None, notes=(), payload=None) -> str:
     """URDF text of ``spec``'s kinematics with the 78-vector ``standard``; ``notes``: more lines of
     the header comment (e.g. the identified terms URDF cannot express); ``payload``: a
-    :class:`urident.ident.payload.Payload`, a fixed link ``payload`` on the flange ``tool0``."""
+    :class:`urident.model.payload.Payload`, a fixed link ``payload`` on the flange ``tool0``."""
     p = check_exportable(standard, "URDF")
     name = name or f"{spec.name}_identified"
     axes = {"x": "1 0 0", "y": "0 1 0", "z": "0 0 1"}

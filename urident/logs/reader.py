@@ -11,7 +11,7 @@ import numpy as np
 from urident.errors import LogFormatError
 
 from .foreign import PRESETS, ColumnMap, ColumnMapError, column_names, parse_column_map
-from .recording import Recording
+from .recording import Recording, with_signal
 from .rosbag import FORMAT_ROSBAG2, is_bag, load_bag
 from .schema import (
     ALL_FIELDS,
@@ -76,6 +76,7 @@ def load_log(
     known_robots: Collection[str] | None = None,
     topic: str | None = None,
     effort: str | None = None,
+    signal: str | None = None,
 ) -> Recording:
     """Load a log into a :class:`Recording`; any defect raises a one-line LogFormatError.
 
@@ -105,7 +106,15 @@ def load_log(
     A rosbag2 (a bag directory, or one ``.mcap`` / ``.db3`` file: :func:`is_bag`) is read by
     :func:`urident.logs.rosbag.load_bag` with ``topic`` (JointState, default ``/joint_states``)
     and ``effort`` (``current`` or ``torque``); ``rows`` then selects messages.
+
+    ``signal``: which signal the torques come from (``current``, ``torque``, ``compensated``:
+    :func:`urident.logs.recording.with_signal`); None lets the log's metadata decide.
     """
+    return with_signal(_load(path, robot, rows, drop_bad, column_map, format, known_robots, topic, effort),
+                       signal, path)
+
+
+def _load(path, robot, rows, drop_bad, column_map, format, known_robots, topic, effort) -> Recording:  # noqa: A002
     if is_bag(path):
         if column_map is not None or format not in (None, FORMAT_ROSBAG2):
             raise LogFormatError(f"{path}: a rosbag2 bag takes no --format or --columns")

@@ -125,3 +125,27 @@ def _freeze(arr: np.ndarray) -> np.ndarray:
     arr = np.ascontiguousarray(arr)
     arr.flags.writeable = False
     return arr
+
+
+def with_signal(recording: Recording, signal: str | None, where: str | Path = "") -> Recording:
+    """``recording`` with its torques to come from ``signal`` (``current``, ``torque`` or
+    ``compensated``; docs/signals.md), recorded in ``metadata["signal"]`` for
+    :func:`urident.ident.torque.torque_signal`; ``current`` drops the joint torques so nothing
+    later mistakes them for the currents'. LogFormatError (naming ``where``) when the log lacks the
+    signal. None leaves the recording as it is."""
+    from urident.errors import LogFormatError
+
+    if signal is None:
+        return recording
+    where = where or recording.source or "recording"
+    metadata = {**recording.metadata, "signal": signal}
+    if signal == "current":
+        if recording.metadata.get("current_from_torque") and recording.metadata.get("torque_kind") == "compensated":
+            raise LogFormatError(f"{where}: --signal current: its effort is a gravity-compensated "
+                                 "torque and carries no motor current; pass --signal compensated")
+        return dataclasses.replace(recording, tau=None, metadata=metadata)
+    if recording.tau is None:
+        raise LogFormatError(f"{where}: --signal {signal}: the log carries no joint torque "
+                             "(actual_current_as_torque, or a bag's torque effort)")
+    return dataclasses.replace(recording, metadata=metadata)
+

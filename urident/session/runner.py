@@ -49,7 +49,7 @@ class RunRequest:
     check_only: bool = False
     assume_yes: bool = False
     record_periods: bool = False   # save every control period to LOG.periods.npy
-    payload: object = None         # the load to check the torques with (urident.ident.payload.Payload);
+    payload: object = None         # the load to check the torques with (urident.model.payload.Payload);
                                    # None: the one the trajectory file records, if any
 
 

@@ -339,7 +339,7 @@ def _urdf_text(sim, spec, changes: dict, notes) -> str:
         rpy = matrix_rpy(frame.rotation.T @ rot[0, 6])
         for old in [e for e in root if e.get("name") in ("payload", "payload_fixed")]:
             root.remove(old)
-        from urident.ident.payload import Payload
+        from urident.model.payload import Payload
 
         com = np.asarray(spec.tool_rotation, float).T @ payload[1]      # K_6 axes → the tool frame's
         point = Payload(spec.name, payload[0], com, np.eye(3) * 1e-6 * payload[0])

@@ -98,7 +98,7 @@ def to_mjcf(spec, standard: np.ndarray, name: str | None = None, notes=(),
             friction_eps: float = 0.01, payload=None) -> str:
     """MJCF text of ``spec``'s kinematics with the 78-vector ``standard``; ``notes``: lines of the
     header comment (e.g. the identified terms MJCF cannot express); ``friction_eps``: the tanh slope
-    [rad/s] the frictionloss imitates; ``payload``: a :class:`urident.ident.payload.Payload`, written
+    [rad/s] the frictionloss imitates; ``payload``: a :class:`urident.model.payload.Payload`, written
     as a body ``payload`` on the flange (frame ``tool0``)."""
     from urident.ident.urdf import check_exportable, link_inertial
 
