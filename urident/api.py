@@ -30,7 +30,7 @@ from urident.logs import Recording, load_log
 
 METHODS = ("ols", "bounded", "consistent")
 __all__ = ["Identification", "Validation", "calibrate_drive_gains", "check_trajectory", "diagnose_gap",
-           "identify", "identify_payload", "load_log", "validate"]
+           "identify", "identify_payload", "load_log", "run_trajectory", "validate"]
 
 
 def _spec(robot):
@@ -343,7 +343,8 @@ def _named(logs, robot: str, options: Mapping | None) -> list[tuple[str, Recordi
 
 def identify_payload(logs, params, robot=None, *, unloaded=None, mass_range=None, drive_gains=None,
                      log_options: Mapping | None = None, params_label: str | None = None,
-                     unloaded_labels: Sequence[str] | None = None):
+                     unloaded_labels: Sequence[str] | None = None,
+                     unloaded_wrist_labels: Sequence[str] | None = None):
     """A tool's mass, centre of mass and inertia (UR's flange frame) from ``logs`` recorded with it
     mounted, the arm's identified ``params`` (an :class:`Identification`, IdentifiedModel or
     parameters file) fixed. ``unloaded``: runs of the same motion without the tool (a tare,
@@ -363,7 +364,8 @@ def identify_payload(logs, params, robot=None, *, unloaded=None, mass_range=None
     loaded = _named(logs, spec.name, log_options)
     tare = _named(unloaded, spec.name, log_options) if unloaded else []
     return fit_payload(arm, spec, loaded, tare, mass_range=mass_range, drive_gains=drive_gains,
-                       params_label=params_label or label, tare_labels=unloaded_labels)
+                       params_label=params_label or label, tare_labels=unloaded_labels,
+                       tare_wrist_labels=unloaded_wrist_labels)
 
 
 def calibrate_drive_gains(without, with_, robot, payload, *, reduced: bool = False,
@@ -384,15 +386,53 @@ def calibrate_drive_gains(without, with_, robot, payload, *, reduced: bool = Fal
     return calibrate_gains(spec, runs[0], runs[1], _payload(payload, spec), reduced=reduced)
 
 
+# --------------------------------------------------------------------------- running a trajectory
+def run_trajectory(trajectory, host: str, out, robot=None, *, config=None, repeat: int = 1,
+                   check_only: bool = False, assume_yes: bool = False, confirm=None, payload=None,
+                   record_periods: bool = False, live=None, say=None):
+    """Run a trajectory file on the controller at ``host`` over RTDE (ur_rtde's servoJ at the
+    controller's rate) and record it to ``out`` (a CSV with its ``.yaml`` sidecar).
+
+    Nothing moves unless the whole trajectory passes its checks at that rate (joint, velocity,
+    acceleration, torque and collision limits, with ``payload`` or the file's); the session ends
+    with servoStop and stopScript whatever happens, and an abort keeps every sample recorded.
+    ``config``: an experiment configuration file or :class:`urident.session.ExperimentConfig`
+    (approach, monitors, rest); ``check_only``: run the checks, connect, move nothing.
+    ``assume_yes`` starts without asking; otherwise ``confirm(question) -> bool`` is asked (none:
+    refused). ``live``: a :class:`urident.viz.LiveStreamer` fed by the control loop, or a path to
+    save the live view to (``.rrd``). Returns a :class:`urident.session.RunResult`; raises
+    :class:`urident.errors.SafetyError` before any motion, :class:`urident.errors.SessionAborted` after it
+    started."""
+    from urident.session import ExperimentConfig, RunRequest, load_experiment_config, run_session
+
+    robot = _spec(robot).name if robot is not None else None
+    if robot is None:
+        from urident.excitation import load_trajectory
+
+        robot = load_trajectory(trajectory).spec.name
+    if not isinstance(config, ExperimentConfig):
+        config = load_experiment_config(config)
+    if isinstance(live, (str, Path)):
+        from urident.viz import LiveStreamer
+
+        live = LiveStreamer(_spec(robot), None, save=live)
+    request = RunRequest(robot=robot, host=host, trajectory=Path(trajectory), out=Path(out), config=config,
+                         repeat=repeat, check_only=check_only, assume_yes=assume_yes,
+                         record_periods=record_periods, payload=_payload(payload, _spec(robot))
+                         if payload is not None else None)
+    return run_session(request, say=say, confirm=confirm, live=live)
+
+
 # --------------------------------------------------------------------------- gap, trajectories
 def diagnose_gap(ident_logs, valid_logs, robot, *, params=None, drive_gains=None, payload=None,
-                 log_options: Mapping | None = None, **config):
+                 log_options: Mapping | None = None, check_logs=None, **config):
     """Where the baseline model's residual on ``valid_logs`` lies, which unmodelled effect explains
     it and how far it shrinks once added. The baseline is identified on ``ident_logs`` (the
     paper's model), or is ``params`` (an :class:`Identification`, IdentifiedModel or parameters
     file); ``payload``: a known tool on the flange; ``config`` sets
-    :class:`urident.gap.GapConfig` fields. Returns a :class:`urident.gap.GapResult`
-    (``to_dict()``/``to_json()`` give the document ``urident gap --json-out`` writes)."""
+    :class:`urident.gap.GapConfig` fields. ``check_logs``: held-out logs the findings are scored on
+    (``result.check``). Returns a :class:`urident.gap.GapResult` (``to_dict()``/``to_json()`` give
+    the document ``urident gap --json-out`` writes)."""
     from urident.gap import GapConfig, diagnose
     from urident.ident import load_params
 
@@ -404,9 +444,15 @@ def diagnose_gap(ident_logs, valid_logs, robot, *, params=None, drive_gains=None
     options = dict(log_options or {})
     ident = list(_recordings(ident_logs, spec.name, **options))
     valid = list(_recordings(valid_logs, spec.name, **options))
-    return diagnose(ident, valid, spec, params=params, drive_gains=drive_gains,
-                    config=replace(GapConfig(), **config), payload=_payload(payload, spec)
-                    if payload is not None else None)
+    result = diagnose(ident, valid, spec, params=params, drive_gains=drive_gains,
+                      config=replace(GapConfig(), **config), payload=_payload(payload, spec)
+                      if payload is not None else None)
+    if check_logs is not None:
+        from urident.gap.check import check_findings
+
+        result.check = check_findings(result, list(_recordings(check_logs, spec.name, **options)), spec,
+                                      drive_gains=drive_gains, params=params)
+    return result
 
 
 def check_trajectory(trajectory, robot=None, rate_hz: float | None = None, payload=None):

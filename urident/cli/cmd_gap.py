@@ -4,7 +4,6 @@ validation residual lies, which unmodelled effect of the catalogue causes it, ho
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 
 from urident.cli import options
@@ -89,23 +88,11 @@ def _load_all(paths, args, rows_text, robot, what):
             for path in progress_iter(paths, f"loading {what} logs")]
 
 
-def _logs_used(recordings, title: str) -> str:
-    from urident.ident.preprocess import file_sha256
-    from urident.ident.torque import describe_signal
-
-    lines = [f"{title} ({len(recordings)}):"]
-    for rec in recordings:
-        rows = (rec.metadata or {}).get("rows")
-        rows = "" if rows is None else f" rows {rows[0]}-{rows[1]},"
-        lines.append(f"  {rec.source}:{rows} {len(rec.t)} samples, sha256 {file_sha256(rec.source) or '-'}; "
-                     f"{describe_signal(rec)}")
-    return "\n".join(lines)
-
-
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from urident.gap import GapConfig, diagnose, format_report
+    from urident.gap.report import logs_used
     from urident.errors import ConfigError
     from urident.gap.candidates import EFFECTS
     from urident.cli.log_args import expand_log_paths, logs_from_args
@@ -124,7 +111,9 @@ def run(args: argparse.Namespace) -> int:
     if args.sim or args.write_sim or args.joint_map:
         from urident.cli.gap_sim import run_sim
 
-        return run_sim(args, _load_all, _json_default)
+        from urident.gap.results import json_default
+
+        return run_sim(args, _load_all, json_default)
     if not args.ident and not args.ident_from:
         raise ConfigError("--ident LOG is required (or --sim MODEL for a simulator model's gap)")
     effects = args.effects or EFFECTS
@@ -140,7 +129,6 @@ def run(args: argparse.Namespace) -> int:
     drive_gains = None if args.drive_gains is None else np.array(args.drive_gains)
     ident_paths = logs_from_args(args.ident, args.ident_from, "--ident")
     valid_paths = logs_from_args(args.valid, args.valid_from, "--valid")
-    check = None
     if args.check:
         _refuse_reused(args, ident_paths, valid_paths)
     ident = _load_all(ident_paths, args, args.ident_rows, spec.name, "identification")
@@ -154,11 +142,11 @@ def run(args: argparse.Namespace) -> int:
     if args.check:
         from urident.gap.check import check_findings, format_check
 
-        check = check_findings(result, check_logs, spec, drive_gains=drive_gains, params=params)
+        result.check = check_findings(result, check_logs, spec, drive_gains=drive_gains, params=params)
         print()
-        print(format_check(check))
-    print(_logs_used(ident, "identification logs used"))
-    print(_logs_used(valid, "validation logs used"))
+        print(format_check(result.check))
+    print(logs_used(ident, "identification logs used"))
+    print(logs_used(valid, "validation logs used"))
     note = spec.nominal_note(None if drive_gains is None else ("inertia_com", "rotor_inertia",
                                                               "viscous_friction", "coulomb_friction"))
     if note:
@@ -166,18 +154,13 @@ def run(args: argparse.Namespace) -> int:
     if args.json_out:
         from urident.fileio import write_text_atomic
 
-        doc = result.as_dict()
-        if check is not None:
-            doc["check"] = check.as_dict()
-        from urident.gap.results import json_safe
-
-        # the check rows too: no NaN, None or infinity, a quantity that is absent says why
-        text = json.dumps(json_safe(doc), indent=1, allow_nan=False, default=_json_default)
-        write_text_atomic(args.json_out, text, fsync=False, overwrite=args.overwrite)
+        write_text_atomic(args.json_out, result.to_json(), fsync=False, overwrite=args.overwrite)
         print(f"\nreport written to {args.json_out}")
     rec = options.open_recording_from_args(args, "urident_gap")
     if rec is not None:
-        _to_rerun(result, spec, rec)
+        from urident.viz.gap_view import log_gap_result
+
+        log_gap_result(rec, result, spec)
         print(f"residual maps {options.rerun_destination(args)}", file=sys.stdout)
     return 0
 
@@ -192,38 +175,6 @@ def _refuse_reused(args, ident_paths, valid_paths) -> None:
     used += [(f"--valid {p}", p, rows(args.valid_rows)) for p in valid_paths]
     check = [(f"--check {p}", p, rows(args.check_rows)) for p in expand_log_paths(args.check, "--check")]
     refuse_same_logs(check, used, "a check log must be held out (give another log or another --check-rows range)")
-
-
-def _json_default(x):
-    import numpy as np
-
-    if isinstance(x, np.generic):
-        return x.item()
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    raise TypeError(f"not JSON serialisable: {type(x).__name__}")
-
-
-def _to_rerun(result, spec, rec) -> None:
-    """Baseline and final comparison on the validation logs, residual maps as tables."""
-    from urident.gap.report import maps_markdown
-    from urident.viz.recording import close_recording
-    from urident.viz.torque_views import log_joint_series, log_metrics, log_text, log_torque_comparison
-
-    ctx = result.valid
-    t = ctx.t - ctx.t[0]
-    tau = ctx.tau
-    names = tuple(spec.joint_names)
-    log_torque_comparison(rec, t, tau, ctx.tau_hat, prefix="gap/baseline", joint_names=names)
-    log_torque_comparison(rec, t, tau, tau - result.fit.residual, prefix="gap/final", joint_names=names)
-    log_joint_series(rec, "gap/improvement", t, ctx.residual ** 2 - result.fit.residual ** 2, names)
-    metrics = {"e_N/baseline": result.baseline_e_n, "e_N/final": result.final_e_n}
-    for j, n in enumerate(names):
-        metrics[f"rms/baseline/{n}"] = float(result.baseline_rms[j])
-        metrics[f"rms/final/{n}"] = float(result.final_rms[j])
-    log_metrics(rec, metrics, prefix="gap/metrics")
-    log_text(rec, "gap/report", maps_markdown(result))
-    close_recording(rec)
 
 
 def _catalogue() -> tuple[str, ...]:

@@ -75,9 +75,12 @@ def run(args: argparse.Namespace) -> int:
     tare = [load_log_from_args(p, args, robot=spec.name, rows=args.unloaded_rows, say_signal=True)
             for p in args.unloaded or []]
     shown_rows = f" rows {rows[0]}-{rows[1]}" if rows else ""
+    flag = (f" (--unloaded-rows {rows[0]}-{rows[1]})" if args.unloaded_rows else
+            f" (--rows {rows[0]}-{rows[1]})" if rows else "")
     result = identify_payload(loaded, arm, spec, unloaded=tare or None, mass_range=args.mass_range,
                               drive_gains=args.drive_gains or None, params_label=str(args.params),
-                              unloaded_labels=[f"--unloaded {p}{shown_rows}" for p in args.unloaded or []])
+                              unloaded_labels=[f"--unloaded {p}{shown_rows}" for p in args.unloaded or []],
+                              unloaded_wrist_labels=[f"--unloaded {p}{flag}" for p in args.unloaded or []])
     result.save(args.out, overwrite=args.overwrite)
     print(result.text())
     if args.json_out:

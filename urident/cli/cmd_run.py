@@ -47,7 +47,6 @@ def _confirm(question: str) -> bool:
 
 def run(args: argparse.Namespace) -> int:
     from urident.errors import ConfigError
-    from urident.session import RunRequest, load_experiment_config, run_session
 
     if args.out is None and not args.check_only:
         raise ConfigError("--out LOG is required (or pass --check-only)")
@@ -63,14 +62,17 @@ def run(args: argparse.Namespace) -> int:
     spec = load_robot(args.robot)  # input files read before connecting: a bad one contacts nothing
     load_trajectory(args.trajectory)
     payload, _ = options.checked_payload(args, spec)
-    request = RunRequest(robot=args.robot, host=args.host, trajectory=args.trajectory,
-                         out=out or Path("unused.csv"), config=load_experiment_config(args.config),
-                         repeat=args.repeat, check_only=args.check_only, assume_yes=args.yes,
-                         record_periods=args.record_periods, payload=payload)
+    from urident.session import load_experiment_config
+
+    config = load_experiment_config(args.config)   # before the live viewer starts
     live = None
     if options.rerun_sink(args) is not None and not args.check_only:
         live = _live_streamer(args)
-    result = run_session(request, confirm=_confirm, live=live)
+    from urident.api import run_trajectory
+
+    result = run_trajectory(args.trajectory, args.host, out or Path("unused.csv"), args.robot, config=config,
+                            repeat=args.repeat, check_only=args.check_only, assume_yes=args.yes, confirm=_confirm,
+                            payload=payload, record_periods=args.record_periods, live=live)
     if result.status == "checked":
         print("check only: every check passed; nothing was moved")
     return 0

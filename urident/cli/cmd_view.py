@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     from urident.model import load_robot
     from urident.viz.blueprint import torque_blueprint
     from urident.viz.recording import close_recording
-    from urident.viz.replay import log_recording_comparison
+    from urident.viz.replay import log_prediction
 
     options.check_rerun_args(args, default_spawn=True)  # fail before the (slow) loading
     recording = load_log_from_args(args.log, args, robot=args.robot)
@@ -61,15 +61,11 @@ def run(args: argparse.Namespace) -> int:
     prediction = predict_recordings(params, [recording], spec, config=config,
                                     payload=options.load_payload_arg(args, spec),
                                     drive_gains=args.drive_gains or None)  # errors before a viewer opens
-    result = prediction.validation()
-
     rec = options.open_recording_from_args(args, "urident_view", default_spawn=True,
                                            blueprint=torque_blueprint(joint_names=spec.joint_names))
-    log_recording_comparison(
-        rec, spec, recording, prediction.data.t, prediction.data.q, result.tau_measured,
-        result.tau_predicted, e_n=result.e_n, rms=result.rms_nm, index=prediction.sample_index(),
-        title=f"{spec.name}: measured vs {'identified' if args.params else 'nominal'} model",
-        pose_rate_hz=args.pose_rate_hz or None)
+    result = log_prediction(rec, spec, recording, prediction,
+                            f"{spec.name}: measured vs {'identified' if args.params else 'nominal'} model",
+                            pose_rate_hz=args.pose_rate_hz or None)
     close_recording(rec)
     rms = ", ".join(f"{v:.3g}" for v in result.rms_nm)
     where = options.rerun_destination(args)

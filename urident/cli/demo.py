@@ -13,7 +13,6 @@
 
 from __future__ import annotations
 
-import json
 import socket
 import time
 from dataclasses import dataclass
@@ -109,7 +108,7 @@ def quick_trajectories(directory: Path, duration: float = 8.0, robot: str = ROBO
 
 def run_demo(root: Path = Path("logs"), quick: bool = False, seed: int = 0,
              say: Callable[[str], None] = print, robot: str = ROBOT) -> DemoResult:
-    from urident.cli.main import main as cli
+    from urident import api as ur
     from urident.excitation import load_trajectory
     from urident.model import load_robot
     from urident.simcontroller.process import SimControllerProcess
@@ -125,11 +124,6 @@ def run_demo(root: Path = Path("logs"), quick: bool = False, seed: int = 0,
 
     def step(text: str) -> None:
         say(f"[{time.monotonic() - t0:6.1f} s] {text}")
-
-    def call(argv: list[str]) -> None:
-        code = cli(argv)
-        if code != 0:
-            raise DemoError(f"'urident {' '.join(argv[:1])}' failed (exit code {code}); see the message above")
 
     directory = new_run_directory(Path(root))
     step(f"writing everything to {directory}/")
@@ -154,11 +148,10 @@ def run_demo(root: Path = Path("logs"), quick: bool = False, seed: int = 0,
     with SimControllerProcess(host=host, robot=robot, effects=EFFECTS_PRESET, seed=seed,
                               initial_q=start + 0.05) as sim:
         for kind, trajectory in (("ident", ident_traj), ("valid", valid_traj)):
-            step(f"urident run: {kind} trajectory {trajectory.name} at {spec.controller_rate_hz:g} Hz "
+            step(f"run: {kind} trajectory {trajectory.name} at {spec.controller_rate_hz:g} Hz "
                  f"(live view -> {kind}_live.rrd)")
-            call(["run", "--robot", robot, "--host", host, "--trajectory", str(trajectory),
-                  "--out", str(logs[kind]), "--config", str(config), "--yes",
-                  "--save", str(directory / f"{kind}_live.rrd")])
+            ur.run_trajectory(trajectory, host, logs[kind], robot, config=config, assume_yes=True,
+                              live=directory / f"{kind}_live.rrd")
         # the last run's check that its program stays stopped must end before the controller does
         from urident.session.handover import controller_turn
 
@@ -168,28 +161,63 @@ def run_demo(root: Path = Path("logs"), quick: bool = False, seed: int = 0,
         say(f"warning: the simulated controller exited with code {sim.returncode}")
 
     params = directory / "params.yaml"
-    step("urident identify: OLS, bounded and physically consistent estimates")
-    call(["identify", str(logs["ident"]), "--robot", robot, "--method", "all", "--out", str(params),
-          "--report", str(directory / "identification.txt")])
-    step("urident validate: e_N and per-joint RMS on the validation run")
-    call(["validate", str(logs["valid"]), "--params", str(params.with_suffix(".ols.yaml")),
-          "--params", str(params.with_suffix(".bounded.yaml")), "--params", str(params),
-          "--json-out", str(directory / "validation.json"), "--png", str(directory / "plots")])
-    step("urident gap: where the residual lies, which effect, how far it shrinks")
-    call(["gap", "--robot", robot, "--ident", str(logs["ident"]), "--valid", str(logs["valid"]),
-          "--json-out", str(directory / "gap.json"), "--save", str(directory / "gap.rrd")])
-    step("urident view: measured vs predicted torques -> validation.rrd")
-    call(["view", str(logs["valid"]), "--params", str(params), "--save", str(directory / "validation.rrd")])
+    step("identify: OLS, bounded and physically consistent estimates")
+    ident = ur.identify([logs["ident"]], spec, method="all")
+    ident.save(params)
+    (directory / "identification.txt").write_text(ident.report + "\n")
+    say(ident.report)
+    step("validate: e_N and per-joint RMS on the validation run")
+    files = [params.with_suffix(".ols.yaml"), params.with_suffix(".bounded.yaml"), params]
+    validation = ur.validate([str(p) for p in files], [logs["valid"]], spec)
+    (directory / "validation.json").write_text(validation.to_json() + "\n")
+    _plots(validation, directory / "plots")
+    for name, r in zip(validation.params, validation.results):
+        say(f"{name} ({r.method}): e_N = {r.e_n:.4f}, mean RMS {r.mean_rms_nm:.3f} N·m")
+    step("gap: where the residual lies, which effect, how far it shrinks")
+    gap = ur.diagnose_gap([logs["ident"]], [logs["valid"]], spec)
+    (directory / "gap.json").write_text(gap.to_json())
+    from urident.gap import format_report
 
-    validation = json.loads((directory / "validation.json").read_text())
-    gap = json.loads((directory / "gap.json").read_text())
+    say(format_report(gap))
+    _rerun_files(spec, gap, logs["valid"], params, directory)
+
     from urident.simcontroller.effects import parse_effects
 
     injected = tuple(e.as_dict() for e in parse_effects(EFFECTS_PRESET).entries)
-    result = DemoResult(directory, validation, gap, time.monotonic() - t0, spec.model or robot, injected)
+    result = DemoResult(directory, validation.to_dict(), gap.to_dict(), time.monotonic() - t0,
+                        spec.model or robot, injected)
     say("")
     say(summary(result))
     return result
+
+
+def _plots(validation, directory: Path) -> None:
+    """Measured against predicted torques of each parameters file, a PNG each."""
+    from urident.viz.plots import plot_torques
+
+    directory.mkdir(parents=True, exist_ok=True)
+    for name, r in zip(validation.params, validation.results):
+        plot_torques(r, directory / f"validation_{Path(name).stem}.png",
+                     title=f"{Path(name).name} ({r.method}): e_N = {r.e_n:.4f}, mean RMS {r.mean_rms_nm:.2f} N·m")
+
+
+def _rerun_files(spec, gap, valid_log: Path, params: Path, directory: Path) -> None:
+    """gap.rrd (the diagnosis' residual maps) and validation.rrd (measured against predicted
+    torques with the arm in 3-D)."""
+    from urident.ident import load_prediction_params, predict_recordings
+    from urident.logs import load_log
+    from urident.viz.blueprint import torque_blueprint
+    from urident.viz.gap_view import log_gap_result
+    from urident.viz.recording import close_recording, open_recording
+    from urident.viz.replay import log_prediction
+
+    log_gap_result(open_recording("urident_gap", save=directory / "gap.rrd"), gap, spec)
+    recording = load_log(valid_log, robot=spec.name)
+    prediction = predict_recordings(load_prediction_params(params, spec), [recording], spec)
+    rec = open_recording("urident_view", save=directory / "validation.rrd",
+                         blueprint=torque_blueprint(joint_names=spec.joint_names))
+    log_prediction(rec, spec, recording, prediction, f"{spec.name}: measured vs identified model")
+    close_recording(rec)
 
 
 def summary(result: DemoResult) -> str:

@@ -133,3 +133,17 @@ def maps_markdown(res) -> str:
         lines += ["", f"Angle spectrum peaks [N·m]: {peaks}",
                   f"Residual vs dτ̂/dt correlation {fr['corr_dtau']:+.2f} (delay {1000 * fr['delay_s']:.1f} ms)", ""]
     return "\n".join(lines)
+
+
+def logs_used(recordings, title: str) -> str:
+    """Which logs (rows, samples, sha256, torque signal) a diagnosis used, a line each."""
+    from urident.ident.preprocess import file_sha256
+    from urident.ident.torque import describe_signal
+
+    lines = [f"{title} ({len(recordings)}):"]
+    for rec in recordings:
+        rows = (rec.metadata or {}).get("rows")
+        rows = "" if rows is None else f" rows {rows[0]}-{rows[1]},"
+        lines.append(f"  {rec.source}:{rows} {len(rec.t)} samples, sha256 {file_sha256(rec.source) or '-'}; "
+                     f"{describe_signal(rec)}")
+    return "\n".join(lines)

@@ -117,6 +117,7 @@ class GapResult:
     scorer: Scorer | None = None     # to fit any candidates on the same data (benchmarks)
     events: list = field(default_factory=list)   # urident.gap.events.Event, set aside
     n_valid_all: int | None = None   # validation samples before the events were set aside
+    check: object = None             # urident.gap.check.CheckResult on held-out logs, if checked
 
     @property
     def verdict(self) -> str:
@@ -147,13 +148,26 @@ class GapResult:
         return result_dict(self)
 
     def to_dict(self) -> dict:
-        """The JSON document ``urident gap --json-out`` writes."""
-        return result_dict(self)
+        """The JSON document ``urident gap --json-out`` writes (with the held-out ``check``)."""
+        doc = result_dict(self)
+        if self.check is not None:
+            doc["check"] = json_safe(self.check.as_dict())
+        return doc
 
-    def to_json(self, indent: int | None = 2) -> str:
+    def to_json(self, indent: int | None = 1) -> str:
+        """:meth:`to_dict` as JSON text: no NaN, None or infinity (a missing figure says why)."""
         import json
 
-        return json.dumps(result_dict(self), indent=indent)
+        return json.dumps(self.to_dict(), indent=indent, allow_nan=False, default=json_default)
+
+
+def json_default(x):
+    """numpy arrays and scalars as JSON lists and numbers."""
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    raise TypeError(f"not JSON serialisable: {type(x).__name__}")
 
 
 def _list(x) -> list[float]:

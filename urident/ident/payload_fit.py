@@ -112,11 +112,13 @@ class PayloadIdentification:
 
 def fit_payload(arm, spec, loaded: Sequence[tuple[str, object]], tare: Sequence[tuple[str, object]] = (), *,
                 mass_range=None, drive_gains=None, params_label: str = "",
-                tare_labels: Sequence[str] | None = None) -> PayloadIdentification:
+                tare_labels: Sequence[str] | None = None,
+                tare_wrist_labels: Sequence[str] | None = None) -> PayloadIdentification:
     """Identify the tool the ``loaded`` recordings carry on the identified ``arm`` (an
     :class:`urident.ident.IdentifiedModel` for ``spec``). ``loaded`` and ``tare`` are
     ``(name, Recording)`` pairs, the name (the log's path) naming it in errors and in the fit
-    (``tare_labels``: other names for the tares' errors, e.g. with their rows); every tare must be the motion
+    (``tare_labels``, ``tare_wrist_labels``: other names for the tares in the same-motion and the
+    wrist-motion errors, e.g. with their rows and the flag that chose them); every tare must be the motion
     of a loaded log, and with tares every loaded log needs one (PayloadError otherwise).
     ``mass_range``: (low, high) [kg] for the consistent estimate; ``drive_gains``: six gains
     [N·m/A] instead of the parameters file's."""
@@ -135,7 +137,8 @@ def fit_payload(arm, spec, loaded: Sequence[tuple[str, object]], tare: Sequence[
     unloaded = None
     if tare:
         labels = list(tare_labels) if tare_labels is not None else [name for name, _ in tare]
-        for label, (_, rec) in zip(labels, tare):   # the clearer message first: a still wrist is no tare
+        wrist = list(tare_wrist_labels) if tare_wrist_labels is not None else labels
+        for label, (_, rec) in zip(wrist, tare):   # the clearer message first: a still wrist is no tare
             check_wrist_motion(rec.q, label)
         check_same_motion([(name, r.t, r.q) for name, r in loaded],
                           [(label, r.t, r.q) for label, (_, r) in zip(labels, tare)])

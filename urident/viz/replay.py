@@ -96,3 +96,17 @@ def log_recording_comparison(
     if robot_path is not None:
         log_robot_motion(rec, spec, t, q, path=robot_path, rate_hz=pose_rate_hz)
     return metrics
+
+
+def log_prediction(rec: rr.RecordingStream, spec: RobotSpec, recording: Any, prediction: Any, title: str,
+                   pose_rate_hz: float | None = None):
+    """A log's measured torques against a model's (``prediction``:
+    :func:`urident.ident.predict_recordings` of ``recording``), with the arm in 3-D, to ``rec``
+    (``urident view``); returns the :class:`urident.ident.ValidationResult`."""
+    result = prediction.validation()
+    log_recording_comparison(
+        rec, spec, recording, prediction.data.t, prediction.data.q, result.tau_measured,
+        result.tau_predicted, e_n=result.e_n, rms=result.rms_nm, index=prediction.sample_index(),
+        title=title, pose_rate_hz=pose_rate_hz)
+    return result
+
