@@ -87,6 +87,7 @@ def test_check_trajectory_reports_what_the_command_checks(capsys):
     ("identify_ur10e.py", "real-robot"),
     ("ros2_bag.py", "validated on the second bag"),
     ("gap_diagnosis.py", "baseline e_N"),
+    ("payload.py", "set_target_payload("),
 ])
 def test_examples_run(script, expect):
     """Each example as a user runs it, from the repository root."""

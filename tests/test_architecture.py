@@ -292,3 +292,80 @@ def test_the_parameter_layout_is_written_only_in_urident_model_parameters():
                                   "v = params[66 + i]\n"])
 def test_the_layout_check_catches_a_literal(text):
     assert _layout_literals(text, "probe.py")
+
+
+# ------------------------------------------------------------------ results as types, not dicts
+#: A function may return a dict to another package when the dict *is* the product: a file's or a
+#: report's JSON/YAML document (``*_dict``, ``*_document``, ``to_dict``/``as_dict``).
+_DOCUMENT_SUFFIXES = ("_dict", "_document")
+
+
+def _returns_bare_dict(fn: ast.FunctionDef) -> bool:
+    """Annotated ``-> dict``/``dict[...]`` (alone or ``| None``), or, unannotated, returning a dict
+    display, comprehension or ``dict(...)`` call."""
+    if fn.returns is not None:
+        parts = [p.strip() for p in ast.unparse(fn.returns).split("|")]
+        return any(p == "dict" or p.startswith(("dict[", "Dict")) for p in parts)
+    for node in ast.walk(fn):
+        if isinstance(node, ast.Return) and node.value is not None:
+            v = node.value
+            if isinstance(v, (ast.Dict, ast.DictComp)) or (
+                    isinstance(v, ast.Call) and isinstance(v.func, ast.Name) and v.func.id == "dict"):
+                return True
+    return False
+
+
+def bare_dict_crossings(root: Path) -> list[str]:
+    """``module.function <- user`` for every public module-level function that returns a bare dict
+    and is imported (``from m import f``, or called as ``m.f`` after ``from pkg import m``) by a
+    module of another subpackage of urident (``urident.gap`` and ``urident.cli`` are two)."""
+    modules = _modules(root)
+    trees = {m: ast.parse(p.read_text(encoding="utf-8")) for m, p in modules.items()}
+    dicts = {(m, n.name) for m, tree in trees.items() for n in tree.body
+             if isinstance(n, ast.FunctionDef) and not n.name.startswith("_")
+             and not n.name.endswith(_DOCUMENT_SUFFIXES) and _returns_bare_dict(n)}
+
+    def package(m: str) -> str:
+        return m.split(".")[1] if m.count(".") else m
+
+    found = set()
+    for m, tree in trees.items():
+        aliases = {}
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom):
+                target = _target(modules, m, node)
+                for a in node.names:
+                    if (target, a.name) in dicts and package(target) != package(m):
+                        found.add(f"{target}.{a.name} <- {m}")
+                    if f"{target}.{a.name}" in modules:
+                        aliases[a.asname or a.name] = f"{target}.{a.name}"
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in aliases:
+                target = aliases[node.value.id]
+                if (target, node.attr) in dicts and package(target) != package(m):
+                    found.add(f"{target}.{node.attr} <- {m}")
+    return sorted(found)
+
+
+def test_no_result_crosses_a_package_boundary_as_a_bare_dict():
+    """Results travel between urident's subpackages as typed (frozen) dataclasses: a reader sees
+    the fields, units and shapes in one place, and a misspelt key fails where it is written."""
+    found = bare_dict_crossings(ROOT)
+    assert not found, "bare dicts returned across packages (make them dataclasses): " + "; ".join(found)
+
+
+def test_the_bare_dict_check_catches_both_import_forms(tmp_path):
+    _write(tmp_path, {
+        "urident/__init__.py": "",
+        "urident/gap/__init__.py": "",
+        "urident/gap/fit.py": ("def shrink(x) -> dict[str, float]:\n    return {'a': x}\n\n"
+                               "def plain(x):\n    return dict(a=x)\n\n"
+                               "def report_dict(x) -> dict:\n    return {'a': x}\n\n"
+                               "def inside(x) -> dict:\n    return {}\n"),
+        "urident/gap/use.py": "from urident.gap.fit import inside\n",
+        "urident/cli/__init__.py": "",
+        "urident/cli/cmd.py": ("from urident.gap.fit import shrink, report_dict\nfrom urident.gap import fit\n\n"
+                               "def run():\n    return fit.plain(1), shrink(2), report_dict(3)\n"),
+    })
+    assert bare_dict_crossings(tmp_path) == ["urident.gap.fit.plain <- urident.cli.cmd",
+                                             "urident.gap.fit.shrink <- urident.cli.cmd"]

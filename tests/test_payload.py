@@ -226,6 +226,11 @@ def test_drive_gains_from_a_known_load(tmp_path, capsys):
     assert ok[1:5].all()    # the load's gravity torque reaches joints 2-5 strongly
     assert np.all(np.abs(est[ok] / true[ok] - 1) < 0.01)
     assert np.all(np.abs(est - true) < 4 * sigma + 0.01 * true)
+    import urident as ur   # the API computes what the command wrote
+
+    api = ur.calibrate_drive_gains([tmp_path / "without.csv"], [tmp_path / "with.csv"], "ur5",
+                                   Payload("ur5", 4.0, [0.03, 0.0, 0.05], np.zeros((3, 3))))
+    assert json.loads(api.to_json()) == data
     # the gains file works wherever --drive-gains does
     capsys.readouterr()
     assert main(["identify", str(tmp_path / "without.csv"), "--robot", "ur5", "--out", str(tmp_path / "p.yaml"),
@@ -250,6 +255,11 @@ def test_payload_with_a_tare_run_of_the_same_trajectory(runs, capsys):
     assert abs(data["mass_kg"] - MASS) < 0.02 * MASS
     assert np.max(np.abs(np.array(data["com_m"]) - COM)) < 0.003
     assert data["fit"]["unloaded_logs"] == [str(runs / "arm.csv")]
+    import urident as ur   # the API gives the document the command wrote, by construction
+
+    api = ur.identify_payload([runs / "load_ident.csv"], runs / "arm_params.yaml", unloaded=[runs / "arm.csv"])
+    assert json.loads(api.to_json()) == data
+    assert api.payload.mass_kg == pytest.approx(data["mass_kg"])
     _one_line_exit2(capsys, ["payload", str(runs / "load.csv"), "--params", str(runs / "arm_params.yaml"),
                              "--unloaded", str(runs / "still.csv"), "--out", str(runs / "x.yaml")],
                     f"--unloaded {runs / 'still.csv'}: the wrist joints")

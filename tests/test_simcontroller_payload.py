@@ -113,8 +113,8 @@ def test_urident_run_records_the_declared_payload_and_reports_show_it(tmp_path):
     assert "torques checked with 1.5 kg" in r.stdout
     recorded = declared_payload(load_log(out).metadata)
     assert recorded is not None
-    assert recorded["mass_kg"] == pytest.approx(mass) and recorded["cog_m"] == pytest.approx(cog)
-    assert recorded["inertia_kg_m2"] == pytest.approx(inertia)
+    assert recorded.mass_kg == pytest.approx(mass) and recorded.cog_m == pytest.approx(cog)
+    assert recorded.inertia_kg_m2 == pytest.approx(inertia)
     assert load_log(out).metadata["extra"]["checked_payload_kg"] == 1.5   # what the torque check included
     report = io.StringIO()   # what validate, gap, identify and payload print for every log they load
     load_log_from_args(out, argparse.Namespace(), robot="ur5e", report=report)

@@ -112,12 +112,12 @@ def restored_gravity(recording, spec) -> np.ndarray:
     zero = np.zeros_like(q)
     gravity = joint_torques(spec, spec.nominal_params, q, zero, zero)
     p = declared_payload(dict(recording.metadata))
-    if p is not None and p["mass_kg"] > 0:  # its gravity needs mass and centre of mass only
+    if p is not None and p.mass_kg > 0:  # its gravity needs mass and centre of mass only
         from urident.model import regressor_blocks
         from urident.model.parameters import TOOL_BODY, body_params
 
-        com = np.asarray(spec.tool_xyz, float) + np.asarray(spec.tool_rotation, float) @ p["cog_m"]
-        load = body_params(p["mass_kg"], com, np.zeros((3, 3)))  # flange frame → K_6
+        com = np.asarray(spec.tool_xyz, float) + np.asarray(spec.tool_rotation, float) @ np.asarray(p.cog_m)
+        load = body_params(p.mass_kg, com, np.zeros((3, 3)))  # flange frame → K_6
         gravity = gravity + regressor_blocks(spec, q, zero, zero)[:, :, TOOL_BODY] @ load
     return gravity
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import datetime as _dt
 import hashlib
 import math
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -131,9 +132,19 @@ def _check_values(path: Path, data: dict[str, Any]) -> None:
 DECLARED_PAYLOAD_KEY = "declared_payload"
 
 
-def declared_payload(metadata: dict[str, Any]) -> dict[str, Any] | None:
-    """``{mass_kg, cog_m (3), inertia_kg_m2 (6: Ixx, Iyy, Izz, Ixy, Ixz, Iyz) or None}`` of a log's
-    sidecar metadata, or None when it records none (or nothing usable)."""
+@dataclass(frozen=True)
+class DeclaredPayload:
+    """The payload the controller was told during a run: mass [kg], centre of mass [m] (3, flange
+    frame) and inertia [kg·m²] (6: Ixx, Iyy, Izz, Ixy, Ixz, Iyz) when the controller publishes it."""
+
+    mass_kg: float
+    cog_m: tuple[float, float, float]
+    inertia_kg_m2: tuple[float, ...] | None
+
+
+def declared_payload(metadata: dict[str, Any]) -> DeclaredPayload | None:
+    """The :class:`DeclaredPayload` of a log's sidecar metadata, or None when it records none (or
+    nothing usable)."""
     extra = metadata.get("extra") if isinstance(metadata, dict) else None
     value = extra.get(DECLARED_PAYLOAD_KEY) if isinstance(extra, dict) else None
     if not isinstance(value, dict):
@@ -147,7 +158,7 @@ def declared_payload(metadata: dict[str, Any]) -> dict[str, Any] | None:
         return None
     if not _finite(mass) or len(cog) != 3 or (inertia is not None and len(inertia) != 6):
         return None
-    return {"mass_kg": mass, "cog_m": cog, "inertia_kg_m2": inertia}
+    return DeclaredPayload(mass, tuple(cog), None if inertia is None else tuple(inertia))
 
 
 def describe_declared_payload(metadata: dict[str, Any]) -> str | None:
@@ -155,8 +166,8 @@ def describe_declared_payload(metadata: dict[str, Any]) -> str | None:
     p = declared_payload(metadata)
     if p is None:
         return None
-    cog = ", ".join(f"{1000 * v:.1f}" for v in p["cog_m"])
-    inertia = ("" if p["inertia_kg_m2"] is None
-               else ", inertia [" + ", ".join(f"{v:.5g}" for v in p["inertia_kg_m2"]) + "] kg·m²")
-    return (f"payload declared to the controller during the run (sidecar): {p['mass_kg']:.4g} kg, "
+    cog = ", ".join(f"{1000 * v:.1f}" for v in p.cog_m)
+    inertia = ("" if p.inertia_kg_m2 is None
+               else ", inertia [" + ", ".join(f"{v:.5g}" for v in p.inertia_kg_m2) + "] kg·m²")
+    return (f"payload declared to the controller during the run (sidecar): {p.mass_kg:.4g} kg, "
             f"centre of mass [{cog}] mm{inertia}")
