@@ -62,29 +62,9 @@ def check_bag_output(path: str | Path, overwrite: bool) -> Path:
     return check_output(path, "--bag", overwrite=False)
 
 
-def bag_effort_values(recording, spec, effort: str):
-    """(N, 6) effort of kind ``effort`` for ``recording`` and how it was obtained."""
-    from urident.ident.torque import restored_gravity, torque_kind
-
-    kind = torque_kind(recording)
-    if effort == "current":
-        if recording.metadata.get("current_from_torque"):
-            full = "(compensated torque + nominal gravity)" if kind == "compensated" else "full torque"
-            return recording.current, f"motor current = {full} / drive gains (the log has no current)"
-        return recording.current, "the log's motor current"
-    if kind == effort or (effort == "torque" and kind == "full"):
-        return recording.tau, "the log's joint torque"
-    full = (recording.current * spec.drive_gains if kind != "compensated"
-            else recording.tau + restored_gravity(recording, spec))
-    if effort == "torque":
-        return full, "current x drive gains" if kind != "compensated" else \
-            "compensated torque + nominal gravity"
-    return full - restored_gravity(recording, spec), \
-        "current x drive gains less the nominal model's gravity (and the declared payload's)"
-
-
 def run(args: argparse.Namespace) -> int:
     from urident.errors import ConfigError
+    from urident.ident.torque import effort_values
     from urident.logs import write_bag
     from urident.cli.log_args import load_log_from_args
     from urident.model import load_robot
@@ -98,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
     # written beside the target, then moved into place: a failed write leaves nothing behind
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
-        values, how = bag_effort_values(recording, spec, args.bag_effort)
+        values, how = effort_values(recording, spec, args.bag_effort)
         write_bag(recording, tmp / out.name, spec.joint_names, effort=args.bag_effort,
                   storage=args.storage, tf_prefix=args.tf_prefix or "", values=values)
         if out.exists():

@@ -310,3 +310,23 @@ def estimate_drive_gains(spec, run_without, run_with, payload: np.ndarray,
     inflation = max(correlation_inflation(e[:currents[0].size]), correlation_inflation(e[currents[0].size:]))
     cov = m @ (zs.T @ zs) @ m.T * (e @ e / dof) / np.outer(scale, scale) * inflation
     return DriveGainEstimate(x[b:], np.sqrt(np.diag(cov))[b:], x[:b])
+
+
+def effort_values(recording, spec, effort: str) -> tuple[np.ndarray, str]:
+    """(N, 6) values of kind ``effort`` (``current`` [A], ``torque`` or ``compensated`` [N·m]) for
+    ``recording``, and how they were obtained (``urident convert --bag-effort``)."""
+    kind = torque_kind(recording)
+    if effort == "current":
+        if recording.metadata.get("current_from_torque"):
+            full = "(compensated torque + nominal gravity)" if kind == "compensated" else "full torque"
+            return recording.current, f"motor current = {full} / drive gains (the log has no current)"
+        return recording.current, "the log's motor current"
+    if kind == effort or (effort == "torque" and kind == "full"):
+        return recording.tau, "the log's joint torque"
+    full = (recording.current * spec.drive_gains if kind != "compensated"
+            else recording.tau + restored_gravity(recording, spec))
+    if effort == "torque":
+        return full, "current x drive gains" if kind != "compensated" else \
+            "compensated torque + nominal gravity"
+    return full - restored_gravity(recording, spec), \
+        "current x drive gains less the nominal model's gravity (and the declared payload's)"
