@@ -74,6 +74,39 @@ def test_api_errors_are_the_commands_errors(identified):
     assert unknown.value.exit_code == 2 and "ur99" in str(unknown.value)
 
 
+def test_errors_carry_what_their_message_names(tmp_path):
+    """A notebook gets the file, line, key or violations as fields, not only in the text."""
+    import pickle
+
+    from urident.errors import SafetyError, SessionAborted, UnknownRobotError
+
+    with pytest.raises(UnknownRobotError) as unknown:
+        ur.identify([IDENT], robot="ur99")
+    assert unknown.value.robot == "ur99" and "ur5e" in unknown.value.available
+    bad = tmp_path / "params.yaml"
+    bad.write_text("format: urident-params\nformat: again\n")
+    with pytest.raises(ConfigError) as dup:
+        ur.validate(bad, [VALID])
+    assert (dup.value.path, dup.value.line, dup.value.key) == (str(bad), 2, "format")
+    bad.write_text("[1, 2\n")
+    with pytest.raises(ConfigError) as malformed:
+        ur.validate(bad, [VALID])
+    assert malformed.value.path == str(bad) and malformed.value.line >= 1
+    from urident.excitation import load_trajectory
+
+    loaded = load_trajectory(REPO / "experiments" / "ur5_ident.yaml")
+    report = ur.check_trajectory(loaded, rate_hz=125.0)
+    assert report.ok
+    from dataclasses import replace
+
+    fast = replace(loaded, trajectory=replace(loaded.trajectory, a=loaded.trajectory.a * 4, b=loaded.trajectory.b * 4))
+    with pytest.raises(SafetyError) as unsafe:
+        ur.check_trajectory(fast).raise_if_unsafe("fast.yaml")
+    assert unsafe.value.path == "fast.yaml" and unsafe.value.violations and unsafe.value.exit_code == 3
+    kept = pickle.loads(pickle.dumps(SessionAborted("run aborted", log_path=tmp_path / "x.csv", n_samples=7)))
+    assert kept.log_path == tmp_path / "x.csv" and kept.n_samples == 7   # across the session process
+
+
 def test_check_trajectory_reports_what_the_command_checks(capsys):
     path = REPO / "experiments" / "ur5_ident.yaml"
     report = ur.check_trajectory(path)

@@ -9,9 +9,17 @@ from __future__ import annotations
 
 
 class UridentError(Exception):
-    """Base class of all user-facing errors. ``exit_code`` is what the CLI returns."""
+    """Base class of all user-facing errors. ``exit_code`` is what the CLI returns; ``data`` holds
+    what the message names as fields (e.g. ``path``, ``line``, ``key``, ``violations``,
+    ``log_path``), each also an attribute, for callers of the Python API."""
 
     exit_code = 2
+
+    def __init__(self, *args: object, **data: object) -> None:
+        super().__init__(*args)
+        self.data = data
+        for name, value in data.items():
+            setattr(self, name, value)
 
 
 class ConfigError(UridentError, ValueError):

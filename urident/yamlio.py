@@ -21,7 +21,7 @@ from typing import Any, Iterable
 import numpy as np
 import yaml
 
-from urident.errors import ConfigError, shown
+from urident.errors import ConfigError, UridentError, shown
 
 # libyaml's parser when available (~20x faster); the constructor stays PyYAML's SafeConstructor.
 _Loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
@@ -70,7 +70,8 @@ def parse_yaml(text: str, label: str, error: type[Exception] = ConfigError) -> A
         line = f":{mark.line + 1}" if mark is not None else ""
         parts = [p for p in (exc.context, exc.problem) if p] or ["malformed YAML"]
         problem = " ".join(", ".join(map(str, parts)).split())
-        raise error(f"{label}{line}: malformed YAML ({shown(problem, 100)})") from None
+        raise error(f"{label}{line}: malformed YAML ({shown(problem, 100)})",
+                    **_data(error, path=label, line=None if mark is None else mark.line + 1)) from None
     except error:
         raise
     except Exception as exc:  # noqa: BLE001 - any parser failure on untrusted input is one line
@@ -105,9 +106,15 @@ def _check_duplicates(node: yaml.Node, where: str, label: str, error: type[Excep
                 ident = (key_node.tag, key_node.value)
                 path = key_path(where, key_node.value)
                 if ident in keys:
-                    raise error(f"{label}:{key_node.start_mark.line + 1}: {path}: duplicate key")
+                    raise error(f"{label}:{key_node.start_mark.line + 1}: {path}: duplicate key",
+                                **_data(error, path=label, line=key_node.start_mark.line + 1, key=path))
                 keys.add(ident)
                 stack.append((value_node, path))
+
+
+def _data(error: type[Exception], **data) -> dict:
+    """``data`` for the fields of a :class:`UridentError` (other exception types take none)."""
+    return data if issubclass(error, UridentError) else {}
 
 
 class Fields:
@@ -121,7 +128,8 @@ class Fields:
 
     def fail(self, where: str, message: str) -> Exception:
         """The error to raise for ``where`` (a full key path; "" for the whole file)."""
-        return self.error(f"{self.label}: {where}: {message}" if where else f"{self.label}: {message}")
+        return self.error(f"{self.label}: {where}: {message}" if where else f"{self.label}: {message}",
+                          **_data(self.error, path=self.label, key=where or None))
 
     def document(self, data: Any, keys: set, required: tuple, fmt: str, what: str) -> dict:
         """The top-level mapping of a ``format: FMT`` file: not empty, only ``keys``, every

@@ -112,7 +112,8 @@ class CheckReport:
             return
         first = self.violations[0]
         more = f" (and {len(self.violations) - 1} more violations)" if len(self.violations) > 1 else ""
-        raise SafetyError(f"{source}: unsafe trajectory: {first.message()}{more}")
+        raise SafetyError(f"{source}: unsafe trajectory: {first.message()}{more}", path=source,
+                          violations=tuple(self.violations))
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-friendly summary."""

@@ -227,7 +227,7 @@ def load_robot(name_or_path: str | Path) -> RobotSpec:
         if not path.is_file():
             raise UnknownRobotError(
                 f"unknown robot '{text}'; available robots: {', '.join(available_robots())} "
-                f"(or give the path of a robot file)")
+                f"(or give the path of a robot file)", robot=text, available=tuple(available_robots()))
     return _parse(path)
 
 

@@ -468,7 +468,8 @@ def _execute(request: RunRequest, spec: RobotSpec, info: ControllerInfo, motion:
     result.max_tracking_error_rad = monitor.max_tracking_error
     if abort_reason:
         raise SessionAborted(f"run aborted {abort_reason}; {stop_outcome(problems)}; {n_samples} "
-                             f"samples kept in {request.out}")
+                             f"samples kept in {request.out}", reason=abort_reason, log_path=request.out,
+                             n_samples=n_samples)
     missed = stats.missed_samples if stats else 0
     say(f"completed: {n_samples} samples in {request.out} ({missed} missed, {monitor.late.late} "
         f"late cycles, max tracking error {monitor.max_tracking_error:.4f} rad)")

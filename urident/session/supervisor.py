@@ -355,7 +355,8 @@ class _Supervisor:
         if reason is None and recorder.get("controller_closed_connection"):
             reason = "after the controller closed the RTDE connection (link lost)"
         head = f"run aborted {reason}; " if reason else "run aborted: "
-        return SessionAborted(f"{head}{death}; {outcome}; {kept}")
+        return SessionAborted(f"{head}{death}; {outcome}; {kept}", reason=reason or death,
+                              log_path=self.request.out)
 
     def _log_kept(self) -> tuple[str, dict]:
         """The recorder outlives the child and closes the log: wait for it, then say what it kept
