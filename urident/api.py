@@ -195,6 +195,10 @@ def identify(logs, robot, method: str = "ols", preset: str | None = None, *, mod
     if selection:
         report = selection + "\n" + report
     report = report + "\n" + logs_used(data.provenance)
+    priors = ("inertia_com", "rotor_inertia", "viscous_friction", "coulomb_friction")
+    note = spec.nominal_note(priors + (("torque_constant", "gear_ratio") if drive_gains is None else ()))
+    if note:  # torques from currents use the file's torque constants; priors and bounds its values
+        report = report + "\n" + note
     primary = "consistent" if method == "all" else method
     return Identification(spec.name, primary, dict(models), report, selection, data)
 

@@ -215,10 +215,6 @@ def run(args: argparse.Namespace) -> int:
         sessions=args.sessions)
     written = [str(p) for p in result.save(out, overwrite=args.overwrite)]
     models, data, text = result.models, result.data, result.report
-    priors = ("inertia_com", "rotor_inertia", "viscous_friction", "coulomb_friction")
-    note = spec.nominal_note(priors + (("torque_constant", "gear_ratio") if args.drive_gains is None else ()))
-    if note:  # torques from currents use the file's torque constants; priors and bounds its values
-        text = text + "\n" + note
     print(text)
     if args.report:
         from urident.fileio import write_text_atomic
