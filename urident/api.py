@@ -454,8 +454,8 @@ def diagnose_gap(ident_logs, valid_logs, robot, *, params=None, drive_gains=None
     if check_logs is not None:
         from urident.gap.check import check_findings
 
-        result.check = check_findings(result, list(_recordings(check_logs, spec.name, **options)), spec,
-                                      drive_gains=drive_gains, params=params)
+        result = replace(result, check=check_findings(result, list(_recordings(check_logs, spec.name, **options)),
+                                                      spec, drive_gains=drive_gains, params=params))
     return result
 
 

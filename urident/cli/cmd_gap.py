@@ -140,9 +140,12 @@ def run(args: argparse.Namespace) -> int:
                           payload=options.load_payload_arg(args, spec))
     print(format_report(result))
     if args.check:
+        from dataclasses import replace
+
         from urident.gap.check import check_findings, format_check
 
-        result.check = check_findings(result, check_logs, spec, drive_gains=drive_gains, params=params)
+        result = replace(result, check=check_findings(result, check_logs, spec, drive_gains=drive_gains,
+                                                      params=params))
         print()
         print(format_check(result.check))
     print(logs_used(ident, "identification logs used"))

@@ -98,7 +98,7 @@ class Finding:
                 "claim": self.claim, **({"remains": self.remains} if self.remains else {})}
 
 
-@dataclass(eq=False)
+@dataclass(eq=False, frozen=True)
 class GapResult:
     robot: str
     model: object                    # the baseline IdentifiedModel
