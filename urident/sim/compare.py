@@ -32,7 +32,8 @@ def model_against_robot(sim, spec, q=None, qd=None, qdd=None) -> dict:
            "first_moment_kg_m": links[:, 1:4].tolist(), "robot_file_first_moment_kg_m": nominal[:, 1:4].tolist(),
            "first_moment_difference_kg_m": np.linalg.norm(links[:, 1:4] - nominal[:, 1:4], axis=1).tolist(),
            "armature_kg_m2": drive["armature"].tolist(), "damping_nm_s_per_rad": drive["damping"].tolist(),
-           "frictionloss_nm": drive["frictionloss"].tolist(), "missing_meshes": list(sim.missing_meshes)}
+           "frictionloss_nm": drive["frictionloss"].tolist(), "missing_meshes": list(sim.missing_meshes),
+           "notes": list(sim.notes)}
     if q is not None:
         tau = geometry_torque(sim, spec, q, qd, qdd)
         out["geometry_torque_rms_nm"] = np.sqrt(np.mean(tau ** 2, axis=0)).tolist()
@@ -60,6 +61,7 @@ def format_model_against_robot(doc: dict, spec, fmt: str) -> list[str]:
     out.append("  " + ("MJCF holds each of these: <inertial> mass, pos, inertia; joint armature, damping, "
                        "frictionloss (Coulomb friction as a clipped line, urident writes it tanh-like)"
                        if fmt == "mjcf" else "URDF holds <inertial> and <dynamics damping friction>; no armature"))
+    out += [f"  note: {line}" for line in doc.get("notes", ())]
     if doc["missing_meshes"]:
         missing = doc["missing_meshes"]
         out.append(f"  mesh files not found (checked without them): {', '.join(missing[:3])}"

@@ -4,6 +4,11 @@
 torques (N, 6) [N·m] the model needs: rigid body + armature·q̈ + damping·q̇ + the frictionloss
 constraint's force (+ gravity, from the file's ``<option gravity>``). Contacts are disabled for it:
 a recorded trajectory passed the collision checks, and a touching capsule pair must not add forces.
+
+The arm's angles are read from ``qpos0``: MuJoCo sets a hinge's ``qpos0`` to its ``ref`` (the qpos
+at which the bodies are as the file places them), so the arm's angle q is qpos − ref, and every
+state here sets qpos = qpos0 + q. Every other joint (a gripper's) is held at its ``qpos0``, still;
+free joints are removed first (:func:`welded`).
 """
 
 from __future__ import annotations
@@ -90,7 +95,7 @@ def inverse_dynamics(model, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, *,
             data.qpos[:] = model.qpos0
             out = np.empty_like(np.asarray(q, dtype=float))
             for k in range(q.shape[0]):
-                data.qpos[qpos_adr] = q[k]
+                data.qpos[qpos_adr] = model.qpos0[qpos_adr] + q[k]
                 data.qvel[dof_adr] = qd[k]
                 data.qacc[dof_adr] = qdd[k]
                 mujoco.mj_inverse(model, data)
@@ -154,6 +159,26 @@ def _load_spec(mujoco, path: Path):
     return spec, model, missing
 
 
+def welded(spec, names):
+    """The ``MjModel`` of a copy of ``spec`` without the joints ``names`` (free joints): their
+    bodies stay where the file places them (a free joint's ``qpos0``), fixed to their parents, so
+    inertias seen by the other joints (``dof_invweight0``, the frictionloss softness) are a fixed
+    base's."""
+    mujoco = import_mujoco()
+    edit = spec.copy()
+    for name in names:
+        edit.delete(edit.joint(name))
+    with _warnings_kept(mujoco) as said:
+        try:
+            model = edit.compile()
+        except ValueError as exc:
+            raise MujocoModelError(f"MuJoCo cannot fix the free joints {', '.join(names)}: "
+                                   f"{' '.join(str(exc).split())}") from None
+    if said:
+        raise MujocoModelError(f"MuJoCo warns with the free joints fixed: {said[0]}")
+    return model
+
+
 def joint_table(model) -> list[tuple[str, str, int, int, int]]:
     """(name, type, qpos address, dof address, body id) of every joint, in tree order."""
     mujoco = import_mujoco()
@@ -172,7 +197,7 @@ def joint_lines(model, joint_ids, q: np.ndarray) -> tuple[np.ndarray, np.ndarray
     adr = model.jnt_qposadr[list(joint_ids)]
     anchors, axes = [], []
     for qk in np.atleast_2d(q):
-        data.qpos[adr] = qk
+        data.qpos[adr] = model.qpos0[adr] + qk
         mujoco.mj_kinematics(model, data)
         anchors.append(np.array(data.xanchor[list(joint_ids)]))
         axes.append(np.array(data.xaxis[list(joint_ids)]))
@@ -187,7 +212,8 @@ def body_poses(model, joint_ids, q: np.ndarray) -> dict:
     mujoco = import_mujoco()
     data = mujoco.MjData(model)
     data.qpos[:] = model.qpos0
-    data.qpos[model.jnt_qposadr[list(joint_ids)]] = q
+    adr = model.jnt_qposadr[list(joint_ids)]
+    data.qpos[adr] = model.qpos0[adr] + q
     mujoco.mj_kinematics(model, data)
     joint_body = {int(model.jnt_bodyid[j]): i for i, j in enumerate(joint_ids)}
     arm = np.full(model.nbody, -1)
