@@ -4,6 +4,8 @@ link masses and first moments, and its joint drive terms (armature, damping, fri
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
 
 
@@ -17,6 +19,28 @@ def geometry_torque(sim, spec, q, qd, qdd) -> np.ndarray:
     zeros = np.zeros(6)
     p = standard_vector(list(sim.link_params(spec)), sim.drive()["armature"], zeros, zeros)
     return sim.rigid(q, qd, qdd) - regressor_blocks(spec, q, qd, qdd) @ p
+
+
+@dataclass(frozen=True)
+class ModelComparison:
+    """:func:`model_against_robot`'s document (``to_dict()``) and its report lines."""
+
+    document: dict = field(repr=False)
+
+    @property
+    def link_mass_kg(self) -> list[float]:
+        return list(self.document["link_mass_kg"])
+
+    def to_dict(self) -> dict:
+        return self.document
+
+    def lines(self, spec, fmt: str) -> list[str]:
+        return format_model_against_robot(self.document, spec, fmt)
+
+
+def compare_model(sim, spec, q=None, qd=None, qdd=None) -> ModelComparison:
+    """:func:`model_against_robot` as a :class:`ModelComparison`."""
+    return ModelComparison(model_against_robot(sim, spec, q, qd, qdd))
 
 
 def model_against_robot(sim, spec, q=None, qd=None, qdd=None) -> dict:
@@ -33,7 +57,7 @@ def model_against_robot(sim, spec, q=None, qd=None, qdd=None) -> dict:
            "first_moment_difference_kg_m": np.linalg.norm(links[:, 1:4] - nominal[:, 1:4], axis=1).tolist(),
            "armature_kg_m2": drive["armature"].tolist(), "damping_nm_s_per_rad": drive["damping"].tolist(),
            "frictionloss_nm": drive["frictionloss"].tolist(), "missing_meshes": list(sim.missing_meshes),
-           "notes": list(sim.notes)}
+           **({"notes": list(sim.notes)} if sim.notes else {})}
     if q is not None:
         tau = geometry_torque(sim, spec, q, qd, qdd)
         out["geometry_torque_rms_nm"] = np.sqrt(np.mean(tau ** 2, axis=0)).tolist()

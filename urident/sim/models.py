@@ -59,6 +59,28 @@ def spec_joint_geometry(spec, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return pos[:, :6], axes
 
 
+@dataclass(frozen=True, eq=False)
+class DriveTerms:
+    """A model's joint drive terms, (6,) each; also read by name (``drive["damping"]``)."""
+
+    armature: np.ndarray        # [kg·m²]
+    damping: np.ndarray         # [N·m·s/rad]
+    frictionloss: np.ndarray    # [N·m]
+
+    KEYS = ("armature", "damping", "frictionloss")
+
+    def __getitem__(self, key: str) -> np.ndarray:
+        if key not in self.KEYS:
+            raise KeyError(key)
+        return getattr(self, key)
+
+    def keys(self) -> tuple[str, ...]:
+        return self.KEYS
+
+    def to_dict(self) -> dict:
+        return {k: getattr(self, k).tolist() for k in self.KEYS}
+
+
 @dataclass(eq=False)
 class SimModel:
     path: Path
@@ -98,20 +120,19 @@ class SimModel:
         model, data = self.handle
         return np.array([pin.rnea(model, data, a, b, c) for a, b, c in zip(q, qd, qdd)])
 
-    def drive(self) -> dict:
+    def drive(self) -> "DriveTerms":
         """The model's joint drive terms (6,) each: ``armature`` [kg·m²] (URDF: none), ``damping``
         [N·m·s/rad] and ``frictionloss`` [N·m] (MJCF: the joint's plus its ``<joint>_friction``
         tendon's)."""
         if self.fmt != "mjcf":
-            return {"armature": np.zeros(6), "damping": np.array(self.damping, float),
-                    "frictionloss": np.array(self.friction, float)}
+            return DriveTerms(np.zeros(6), np.array(self.damping, float), np.array(self.friction, float))
         from urident.sim.mujoco_model import tendon_frictionloss
 
         m = self.handle
         fl = np.array(m.dof_frictionloss[self.dof_adr], float)
         fl += tendon_frictionloss(m, [f"{n}_friction" for n in self.joint_names])
-        return {"armature": np.array(m.dof_armature[self.dof_adr], float),
-                "damping": np.array(m.dof_damping[self.dof_adr], float), "frictionloss": fl}
+        return DriveTerms(np.array(m.dof_armature[self.dof_adr], float),
+                          np.array(m.dof_damping[self.dof_adr], float), fl)
 
     def link_params(self, spec) -> np.ndarray:
         """(6, 10) the model's link parameters in the paper's form (m, m·ρ, A … F about K_i in K_i's
