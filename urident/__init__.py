@@ -10,7 +10,7 @@ command line starts fast::
 from urident.version import __version__
 
 _API = ("Identification", "Validation", "check_trajectory", "diagnose_gap", "identify", "load_log",
-        "validate", "diagnose_sim")
+        "validate", "diagnose_sim", "export_model")
 __all__ = ["__version__", *_API]
 
 
