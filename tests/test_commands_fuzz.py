@@ -166,9 +166,9 @@ def test_gap_sim_model_contents(data, capfd, monkeypatch, fmt, attr, value, body
     appear; the torques at rest must be the arm's."""
     text = (data / f"ur5.{fmt}").read_text()
     if fmt == "xml":
-        pattern = {"mass": r'mass="[^"]*"', "fullinertia": r'fullinertia="[^" ]*',
+        pattern = {"mass": r'mass="[^"]*"', "fullinertia": r'diaginertia="[^" ]*',   # MuJoCo writes it so
                    "pos": r'<inertial pos="[^" ]*'}[attr]
-        repl = {"mass": f'mass="{value!r}"', "fullinertia": f'fullinertia="{value!r}',
+        repl = {"mass": f'mass="{value!r}"', "fullinertia": f'diaginertia="{value!r}',
                 "pos": f'<inertial pos="{value!r}'}[attr]
     else:
         pattern = {"mass": r'<mass value="[^"]*"', "fullinertia": r'ixx="[^"]*"', "pos": r'damping="[^"]*"'}[attr]

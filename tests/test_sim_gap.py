@@ -85,11 +85,12 @@ def test_unparsable_and_incomplete_models_name_the_element(ur5_models, capsys, t
     text = ur5_models["xml"].read_text()
     start = text.index('<joint name="wrist_3"')
     short = tmp_path / "short.xml"
-    short.write_text(text[:start] + text[text.index("/>", start) + 2:].replace(
-        '<motor name="wrist_3" joint="wrist_3" gear="1" ctrlrange="-28 28"/>', ""))
+    short.write_text(text[:start] + re.sub(r'<(motor|general) name="wrist_3"[^>]*/>', "",
+                                           text[text.index("/>", start) + 2:]))
     code, err = _gap(short, capsys)
     assert code == 2 and "5 hinge joints, ur5 has 6" in err, err
-    slide = _edit(ur5_models["xml"], tmp_path / "slide.xml", 'type="hinge" axis="0 0 1"', 'type="slide" axis="0 0 1"')
+    slide = _edit(ur5_models["xml"], tmp_path / "slide.xml", '<joint name="shoulder_pan"',
+                  '<joint name="shoulder_pan" type="slide"')
     code, err = _gap(slide, capsys)
     assert code == 2 and "<joint name='shoulder_pan' type='slide'>" in err
 

@@ -475,3 +475,84 @@ def check_trajectory(trajectory, robot=None, rate_hz: float | None = None, paylo
     rate = rate_hz or spec.controller_rate_hz
     load = _payload(payload, spec) if payload is not None else loaded.payload
     return check(spec, loaded.trajectory, rate, loaded.limits, payload=load)
+
+
+# --------------------------------------------------------------------------- simulator models
+def diagnose_sim(model, valid_logs, robot, *, model_label: str | None = None, joint_map: Mapping | None = None,
+                 drive_gains=None, write_sim: str | Path | None = None, overwrite: bool = False,
+                 valid_labels: Sequence[str] | None = None, log_options: Mapping | None = None, **config):
+    """The sim-to-real gap of a simulator model as it is (``urident gap --sim``): ``model`` an MJCF
+    or URDF path (or a loaded :class:`urident.sim.models.SimModel`) of ``robot``, through its own
+    inverse dynamics on ``valid_logs``; which findings its format can express, the drive terms not
+    found and below what, the predicted shrink and, with ``write_sim`` (a path of the same format),
+    the model written with the expressible findings and measured by its simulator. ``joint_map``:
+    robot joint → the model's joint name; ``config`` sets :class:`urident.gap.GapConfig` fields
+    (``max_effects`` defaults to 30). Returns a :class:`urident.gap.sim_report.SimGapReport`
+    (``lines()`` the command's report, ``to_json()`` its ``--json-out``)."""
+    from urident.gap import GapConfig
+    from urident.gap.sim_report import SIM_MAX_EFFECTS, diagnose_sim_model
+    from urident.sim.models import SimModel, load_sim_model
+
+    spec = _spec(robot)
+    joint_map = dict(joint_map) if joint_map else None
+    sim = model if isinstance(model, SimModel) else load_sim_model(model, spec, joint_map=joint_map)
+    if valid_labels is None:
+        items = [valid_logs] if isinstance(valid_logs, (str, Path, Recording)) else list(valid_logs)
+        valid_labels = [str(v.source) if isinstance(v, Recording) else str(v) for v in items]
+        valid_logs = items
+    valid = list(_recordings(valid_logs, spec.name, **dict(log_options or {})))
+    return diagnose_sim_model(sim, valid, spec, model_label=model_label if model_label is not None else
+                              (str(model) if not isinstance(model, SimModel) else None),
+                              drive_gains=drive_gains, config=replace(GapConfig(max_effects=SIM_MAX_EFFECTS), **config),
+                              write_to=write_sim, overwrite=overwrite, valid_labels=valid_labels,
+                              joint_map=joint_map)
+
+
+__all__ += ["diagnose_sim"]
+
+
+def export_model(params, out: str | Path, *, format: str | None = None, robot=None, name: str | None = None,
+                 payload=None, valid_logs=None, log_options: Mapping | None = None, overwrite: bool = False,
+                 label: str | None = None, payload_label: str | None = None,
+                 valid_labels: Sequence[str] | None = None):
+    """Write a simulator model of the arm (``urident export``): ``params`` (an
+    :class:`Identification`, IdentifiedModel or parameters file) with its physically consistent
+    estimate, or None for ``robot``'s nominal values. ``format``: ``mjcf`` (built through
+    ``mujoco.MjSpec``) or ``urdf``, by ``out``'s suffix when None. ``payload``: a Payload or payload
+    file, a body on the flange; ``valid_logs``: each identified term the format cannot express gets
+    its share of their torque. Returns a :class:`urident.sim.export.ExportedModel` (``lines()`` what
+    the command prints; ``to_dict()``/``to_json()``)."""
+    from urident.ident import load_params
+    from urident.sim.export import export_identified, export_nominal
+    from urident.sim.models import model_format
+
+    fmt = format or model_format(out)
+    if params is None:
+        if robot is None:
+            raise ConfigError("export: the robot file's nominal values need a robot")
+        if valid_logs:
+            raise ConfigError("--valid: shares are of identified terms; --nominal has none")
+        spec = _spec(robot)
+        load = _payload(payload, spec) if payload is not None else None
+        return export_nominal(spec, out, fmt, name=name, payload=load,
+                              payload_label=payload_label or (str(payload) if payload is not None else None),
+                              overwrite=overwrite)
+    if isinstance(params, Identification):
+        label, params = label or f"<identified {params.method}>", params.model
+    elif isinstance(params, (str, Path)):
+        label, params = label or str(params), load_params(params)
+    else:
+        label = label or f"<{getattr(params, 'method', 'parameters')}>"
+    spec = _spec(robot or params.robot)
+    load = _payload(payload, spec) if payload is not None else None
+    items = [] if valid_logs is None else (
+        [valid_logs] if isinstance(valid_logs, (str, Path, Recording)) else list(valid_logs))
+    if valid_labels is None:
+        valid_labels = [str(v.source) if isinstance(v, Recording) else str(v) for v in items]
+    recordings = list(_recordings(items, spec.name, **dict(log_options or {})))
+    return export_identified(params, spec, out, fmt, label=label, name=name, payload=load,
+                             payload_label=payload_label or (str(payload) if payload is not None else None),
+                             valid_recordings=recordings, valid_labels=valid_labels, overwrite=overwrite)
+
+
+__all__ += ["export_model"]

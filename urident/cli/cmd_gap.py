@@ -111,9 +111,7 @@ def run(args: argparse.Namespace) -> int:
     if args.sim or args.write_sim or args.joint_map:
         from urident.cli.gap_sim import run_sim
 
-        from urident.gap.results import json_default
-
-        return run_sim(args, _load_all, json_default)
+        return run_sim(args, _load_all)
     if not args.ident and not args.ident_from:
         raise ConfigError("--ident LOG is required (or --sim MODEL for a simulator model's gap)")
     effects = args.effects or EFFECTS

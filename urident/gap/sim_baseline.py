@@ -29,6 +29,7 @@ findings a format can take; :func:`corrections` turns the expressible ones into 
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -306,7 +307,34 @@ def unwritable(candidates, links, changes) -> list[Candidate]:
             or (c.effect == "payload_error" and negative and 5 in links)]
 
 
-def corrections(result, candidates=None) -> dict:
+@dataclass(frozen=True, eq=False)
+class SimCorrections(Mapping):
+    """Additions to a simulator model's values (what :mod:`urident.sim.correct` writes), also read
+    as a mapping by name: ``armature``, ``damping``, ``frictionloss`` (6,), ``mass`` (6,) [kg],
+    ``first_moment`` (6, 3) [kg·m], ``inertia`` (6, 3, 3) about K_j in K_j's axes [kg·m²],
+    ``payload`` (mass [kg], first moment (3,) [kg·m]) or None."""
+
+    armature: np.ndarray
+    damping: np.ndarray
+    frictionloss: np.ndarray
+    mass: np.ndarray
+    first_moment: np.ndarray
+    inertia: np.ndarray
+    payload: tuple | None = None
+
+    def __getitem__(self, key: str):
+        if key not in self.__dataclass_fields__:
+            raise KeyError(key)
+        return getattr(self, key)
+
+    def __iter__(self):
+        return iter(self.__dataclass_fields__)
+
+    def __len__(self) -> int:
+        return len(self.__dataclass_fields__)
+
+
+def corrections(result, candidates=None) -> SimCorrections:
     """The expressible findings of a :func:`diagnose_sim` result (or only ``candidates`` of them,
     refitted together) as model changes:
     ``{"armature": (6,), "damping": (6,), "frictionloss": (6,), "mass": (6,), "first_moment": (6, 3),
@@ -331,7 +359,7 @@ def corrections(result, candidates=None) -> dict:
             out["inertia"][c.joint] += inertia_change(c, beta)
         elif c.effect == "payload_error":
             out["payload"] = (float(beta[0]), np.asarray(beta[1:4], float))
-    return out
+    return SimCorrections(**out)
 
 
 def expressible_fit(result):
@@ -344,7 +372,23 @@ def expressible_fit(result):
 DRIVE_UNITS = {"armature": "kg·m²", "damping": "N·m·s/rad", "frictionloss": "N·m"}
 
 
-def detection_limits(result) -> list[dict]:
+@dataclass(frozen=True)
+class DetectionLimit:
+    """A drive term not found, and the value below which these states would not show it."""
+
+    effect: str
+    joint: int              # 1-based
+    unit: str
+    below_nm: float         # its torque RMS at the limit [N·m]
+    limit: float            # the value, in ``unit``
+    column_rms: float       # RMS of its column (q̈, q̇ or tanh(q̇/ε)) on the states
+
+    def as_dict(self) -> dict:
+        return {"effect": self.effect, "joint": self.joint, "unit": self.unit, "below_nm": self.below_nm,
+                "limit": self.limit, "column_rms": self.column_rms}
+
+
+def detection_limits(result) -> list[DetectionLimit]:
     """The drive terms of the format (armature, damping, frictionloss per joint) that are not among
     the findings, each with the smallest value these validation states would have shown: its
     torque must reach ``cv_min_noise_ratio`` × the joint's white-noise torque and shrink the
@@ -368,6 +412,5 @@ def detection_limits(result) -> list[dict]:
                 continue
             torque = max(config.cv_min_noise_ratio * sigma[j], result.final_rms[j] * np.sqrt(1 - keep ** 2))
             limit = torque / col_rms[j] if col_rms[j] > 0 else float("inf")
-            out.append({"effect": effect, "joint": j + 1, "unit": unit, "below_nm": float(torque),
-                        "limit": float(limit), "column_rms": float(col_rms[j])})
+            out.append(DetectionLimit(effect, j + 1, unit, float(torque), float(limit), float(col_rms[j])))
     return out

@@ -1,8 +1,9 @@
 """Physics-simulator models of an identified arm: MJCF (MuJoCo) and URDF export, the identified
 terms a format cannot express, and MuJoCo's own inverse dynamics.
 
-* :mod:`urident.sim.mjcf` writes MJCF as plain XML (no dependency); the URDF writer is
-  :mod:`urident.ident.urdf`;
+* :mod:`urident.sim.mjcf` describes the exported MJCF in plain values, which
+  :func:`urident.sim.mujoco_model.arm_xml` builds as a ``mujoco.MjSpec`` and writes; the URDF
+  writer is :mod:`urident.ident.urdf`;
 * :mod:`urident.sim.terms` says which identified terms each format can express and what share of
   a validation torque the others carry;
 * :mod:`urident.sim.models` loads a user's MJCF/URDF (:mod:`urident.sim.chain`: the same chain

@@ -4,6 +4,8 @@ link masses and first moments, and its joint drive terms (armature, damping, fri
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
 
 
@@ -19,6 +21,28 @@ def geometry_torque(sim, spec, q, qd, qdd) -> np.ndarray:
     return sim.rigid(q, qd, qdd) - regressor_blocks(spec, q, qd, qdd) @ p
 
 
+@dataclass(frozen=True)
+class ModelComparison:
+    """:func:`model_against_robot`'s document (``to_dict()``) and its report lines."""
+
+    document: dict = field(repr=False)
+
+    @property
+    def link_mass_kg(self) -> list[float]:
+        return list(self.document["link_mass_kg"])
+
+    def to_dict(self) -> dict:
+        return self.document
+
+    def lines(self, spec, fmt: str) -> list[str]:
+        return format_model_against_robot(self.document, spec, fmt)
+
+
+def compare_model(sim, spec, q=None, qd=None, qdd=None) -> ModelComparison:
+    """:func:`model_against_robot` as a :class:`ModelComparison`."""
+    return ModelComparison(model_against_robot(sim, spec, q, qd, qdd))
+
+
 def model_against_robot(sim, spec, q=None, qd=None, qdd=None) -> dict:
     """The model's geometry and dynamics beside the robot file's (JSON-ready); with states (N, 6)
     also the RMS torque of the geometry per joint on them."""
@@ -32,7 +56,8 @@ def model_against_robot(sim, spec, q=None, qd=None, qdd=None) -> dict:
            "first_moment_kg_m": links[:, 1:4].tolist(), "robot_file_first_moment_kg_m": nominal[:, 1:4].tolist(),
            "first_moment_difference_kg_m": np.linalg.norm(links[:, 1:4] - nominal[:, 1:4], axis=1).tolist(),
            "armature_kg_m2": drive["armature"].tolist(), "damping_nm_s_per_rad": drive["damping"].tolist(),
-           "frictionloss_nm": drive["frictionloss"].tolist(), "missing_meshes": list(sim.missing_meshes)}
+           "frictionloss_nm": drive["frictionloss"].tolist(), "missing_meshes": list(sim.missing_meshes),
+           **({"notes": list(sim.notes)} if sim.notes else {})}
     if q is not None:
         tau = geometry_torque(sim, spec, q, qd, qdd)
         out["geometry_torque_rms_nm"] = np.sqrt(np.mean(tau ** 2, axis=0)).tolist()
@@ -60,6 +85,7 @@ def format_model_against_robot(doc: dict, spec, fmt: str) -> list[str]:
     out.append("  " + ("MJCF holds each of these: <inertial> mass, pos, inertia; joint armature, damping, "
                        "frictionloss (Coulomb friction as a clipped line, urident writes it tanh-like)"
                        if fmt == "mjcf" else "URDF holds <inertial> and <dynamics damping friction>; no armature"))
+    out += [f"  note: {line}" for line in doc.get("notes", ())]
     if doc["missing_meshes"]:
         missing = doc["missing_meshes"]
         out.append(f"  mesh files not found (checked without them): {', '.join(missing[:3])}"

@@ -1,10 +1,13 @@
-"""MJCF (MuJoCo) export of a physically consistent 78-vector, written as plain XML.
+"""MJCF (MuJoCo) export of a physically consistent 78-vector, built as a ``mujoco.MjSpec`` and
+written by MuJoCo's own writer (:func:`urident.sim.mujoco_model.arm_xml`; this module describes the
+model in plain values, so that only ``mujoco_model`` imports MuJoCo).
 
 Body i is the paper's joint frame K_i (``pos``/``quat``: the robot file's fixed placement of K_i in
 K_{i−1}); its hinge joint sits at the body origin. Link inertials come from the ten parameters (centre
-of mass ρ = h/m, ``fullinertia`` about it), the reflected rotor inertia i_G²·C_M is the joint's
-``armature``, viscous friction its ``damping`` and Coulomb friction its ``frictionloss``; limits are the
-robot file's. MuJoCo's frictionloss is a soft constraint whose force in the friction zone is
+of mass ρ = h/m, ``fullinertia`` about it, which MuJoCo writes as ``diaginertia`` + ``quat``), the
+reflected rotor inertia i_G²·C_M is the joint's ``armature``, viscous friction its ``damping`` and
+Coulomb friction its ``frictionloss``; limits are the robot file's. MuJoCo's frictionloss is a soft
+constraint whose force in the friction zone is
 −D·(q̈ + b·q̇), clipped to ± frictionloss, with D = d/((1 − d)·w), w the joint's inverse inertia at
 qpos0 (MuJoCo's ``dof_invweight0``) and d, b from ``solimpfriction`` / ``solreffriction``:
 :func:`friction_softness` picks them so that the slope at q̇ = 0 is tanh(q̇/ε)'s, f_c/ε, and the
@@ -12,14 +15,16 @@ acceleration term is negligible (d = 1e-3). One clipped line is 0.11·f_c from t
 |q̇| ≈ ε, i.e. at every velocity reversal and at rest); so the Coulomb friction is split in two
 pieces with different slopes, the joint's ``frictionloss`` and a fixed tendon's on the same joint
 (``<joint>_friction``, their sum is f_c), which follow tanh to 0.035·f_c (:data:`FRICTION_PIECES`).
-Collision geometry: the robot file's capsules. A motor actuator per joint takes
-torques (ctrlrange ± the joint's torque limit); a site ``tool0`` marks the flange.
+Collision geometry: the robot file's capsules (class ``collision``; MuJoCo writes a ``fromto`` as
+``pos``/``quat``/``size``). A motor actuator per joint takes torques (gear 1, ctrlrange ± the joint's
+torque limit; MuJoCo writes it in its general form); a site ``tool0`` marks the flange. Numbers are
+written with 17 significant digits (MuJoCo's writer, :func:`urident.sim.mujoco_model.arm_xml`).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
-from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
@@ -31,10 +36,6 @@ FRICTION_IMPEDANCE = 1e-3
 #: minimax fit of w1·clip(k1·x) + w2·clip(k2·x) to tanh(x) (max error 0.035)
 FRICTION_PIECES = ((0.5075, 1.229), (0.4925, 0.4982))
 AXES = {"x": "1 0 0", "y": "0 1 0", "z": "0 0 1"}
-
-
-def _fmt(values) -> str:
-    return " ".join(f"{float(v):.12g}" for v in np.atleast_1d(values))
 
 
 def quaternion(rotation: np.ndarray) -> np.ndarray:
@@ -85,21 +86,88 @@ def mujoco_inertia(inertia: np.ndarray) -> tuple[np.ndarray, bool]:
     return (vec * fixed) @ vec.T if changed else inertia, changed
 
 
-def _comment(text: str) -> str:
-    return "<!-- " + text.replace("--", "- -") + " -->"
+@dataclass(frozen=True)
+class MjcfHinge:
+    """A hinge joint at its body's origin: ``axis`` (3,), ``range`` (2,) [rad], ``armature`` [kg·m²],
+    ``damping`` [N·m·s/rad], ``frictionloss`` [N·m] with its ``solref``/``solimp`` (None: MuJoCo's)."""
+
+    name: str
+    axis: tuple[float, float, float]
+    range: tuple[float, float]
+    armature: float
+    damping: float
+    frictionloss: float
+    solref: tuple[float, ...] | None = None
+    solimp: tuple[float, ...] | None = None
 
 
-def _capsules(capsules, indent: str, group: str) -> list[str]:
-    return [f'{indent}<geom class="{group}" type="capsule" fromto="{_fmt(np.r_[c.a, c.b])}" '
-            f'size="{c.radius:.12g}"/>' for c in capsules]
+@dataclass(frozen=True)
+class MjcfBody:
+    """A body at ``pos``/``quat`` (w, x, y, z) in its parent, its inertial (``mass`` [kg], centre of
+    mass ``com`` [m] in the body, ``fullinertia`` (Ixx, Iyy, Izz, Ixy, Ixz, Iyz) about it [kg·m²]),
+    an optional hinge and capsules ((fromto (6,), radius), class ``collision``)."""
+
+    name: str
+    pos: tuple[float, ...]
+    quat: tuple[float, ...]
+    mass: float
+    com: tuple[float, ...]
+    fullinertia: tuple[float, ...]
+    joint: MjcfHinge | None = None
+    capsules: tuple[tuple[tuple[float, ...], float], ...] = ()
 
 
-def to_mjcf(spec, standard: np.ndarray, name: str | None = None, notes=(),
-            friction_eps: float = 0.01, payload=None) -> str:
-    """MJCF text of ``spec``'s kinematics with the 78-vector ``standard``; ``notes``: lines of the
-    header comment (e.g. the identified terms MJCF cannot express); ``friction_eps``: the tanh slope
-    [rad/s] the frictionloss imitates; ``payload``: a :class:`urident.model.payload.Payload`, written
-    as a body ``payload`` on the flange (frame ``tool0``)."""
+@dataclass(frozen=True)
+class MjcfFrictionTendon:
+    """A fixed tendon on one joint (coefficient 1) carrying a share of its Coulomb friction."""
+
+    name: str
+    joint: str
+    frictionloss: float
+    solref: tuple[float, ...]
+    solimp: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class MjcfArm:
+    """Everything :func:`urident.sim.mujoco_model.arm_xml` builds: ``links`` is a chain (each body
+    the child of the one before), ``tool`` (pos, quat) the site ``tool0`` in the last link, ``payload``
+    a body there, ``excludes`` body-name pairs whose contacts are off, a motor per joint."""
+
+    name: str
+    comment: tuple[str, ...]
+    gravity: tuple[float, float, float]
+    base_capsules: tuple[tuple[tuple[float, ...], float], ...]
+    links: tuple[MjcfBody, ...]
+    tool: tuple[tuple[float, ...], tuple[float, ...]]
+    payload: MjcfBody | None
+    excludes: tuple[tuple[str, str], ...]
+    tendons: tuple[MjcfFrictionTendon, ...]
+    motors: tuple[tuple[str, float], ...]          # (joint, torque limit [N·m])
+
+
+def _vec(values) -> tuple[float, ...]:
+    return tuple(float(v) for v in np.atleast_1d(values))
+
+
+def _numbers(text: str) -> tuple[float, ...]:
+    return tuple(float(v) for v in text.split())
+
+
+def _capsules(capsules) -> tuple:
+    return tuple((_vec(np.r_[c.a, c.b]), float(c.radius)) for c in capsules)
+
+
+def _full(ic: np.ndarray) -> tuple[float, ...]:
+    return _vec([ic[0, 0], ic[1, 1], ic[2, 2], ic[0, 1], ic[0, 2], ic[1, 2]])
+
+
+def mjcf_arm(spec, standard: np.ndarray, name: str | None = None, notes=(),
+             friction_eps: float = 0.01, payload=None) -> MjcfArm:
+    """The MJCF model of ``spec``'s kinematics with the 78-vector ``standard``; ``notes``: lines of
+    the top comment (e.g. the identified terms MJCF cannot express); ``friction_eps``: the tanh
+    slope [rad/s] the frictionloss imitates; ``payload``: a :class:`urident.model.payload.Payload`,
+    a body ``payload`` on the flange (frame ``tool0``)."""
     from urident.ident.urdf import check_exportable, link_inertial
 
     p = check_exportable(standard, "MJCF")
@@ -107,80 +175,50 @@ def to_mjcf(spec, standard: np.ndarray, name: str | None = None, notes=(),
     if payload is not None:     # MuJoCo's dof_invweight0 (the friction softness) includes the payload
         loaded[body_slice(len(spec.joints) - 1)] += payload.body_params(spec)
     weights = inverse_weights(spec, loaded)
-    name = name or f"{spec.name}_identified"
-    out = ['<?xml version="1.0"?>', f"<mujoco model={quoteattr(name)}>"]
-    out += ["  " + _comment(line) for line in notes]
-    inertials = []
+    comment = [line.replace("--", "- -") for line in notes]
+    links = []
     for i, joint in enumerate(spec.joints):
         m, com, ic = link_inertial(p[body_slice(i)])
         ic, changed = mujoco_inertia(ic)
-        inertials.append((m, com, ic))
         if changed:
-            out.append("  " + _comment(f"{joint.name}_link: principal moments raised to >= "
-                                       f"{MIN_PRINCIPAL_INERTIA:g} kg m^2 (MuJoCo refuses a zero one)"))
-    out += ['  <compiler angle="radian" autolimits="true" inertiafromgeom="false"/>',
-            f'  <option gravity="{_fmt(spec.gravity)}"/>',
-            "  <default>",
-            '    <default class="collision"><geom contype="1" conaffinity="1" group="3" rgba="0.6 0.6 0.7 1"/></default>',
-            "  </default>",
-            "  <worldbody>"]
-    out += _capsules(spec.base_collision, "    ", "collision")
-    indent = "    "
-    for i, joint in enumerate(spec.joints):
-        m, com, ic = inertials[i]
+            comment.append(f"{joint.name}_link: principal moments raised to >= {MIN_PRINCIPAL_INERTIA:g} "
+                           "kg m^2 (MuJoCo refuses a zero one)")
         fc = p[COULOMB][i] * FRICTION_PIECES[0][0]
-        soft = ""
+        ref = imp = None
         if fc > 0:
-            ref, imp = friction_softness(fc, weights[i], friction_eps / FRICTION_PIECES[0][1])
-            soft = f' solreffriction="{ref}" solimpfriction="{imp}"'
-        out += [f'{indent}<body name={quoteattr(joint.name + "_link")} pos="{_fmt(joint.xyz)}" '
-                f'quat="{_fmt(quaternion(joint.rotation))}">',
-                f'{indent}  <inertial pos="{_fmt(com)}" mass="{m:.12g}" fullinertia="'
-                f'{_fmt([ic[0, 0], ic[1, 1], ic[2, 2], ic[0, 1], ic[0, 2], ic[1, 2]])}"/>',
-                f'{indent}  <joint name={quoteattr(joint.name)} type="hinge" axis="{AXES[joint.axis]}" '
-                f'range="{joint.q_min:.12g} {joint.q_max:.12g}" armature="{p[ROTOR][i]:.12g}" '
-                f'damping="{p[VISCOUS][i]:.12g}" frictionloss="{fc:.12g}"{soft}/>']
-        out += _capsules(joint.collision, indent + "  ", "collision")
-        indent += "  "
-    out.append(f'{indent}<site name="tool0" pos="{_fmt(spec.tool_xyz)}" '
-               f'quat="{_fmt(quaternion(spec.tool_rotation))}"/>')
+            ref, imp = (_numbers(t) for t in friction_softness(fc, weights[i], friction_eps / FRICTION_PIECES[0][1]))
+        hinge = MjcfHinge(joint.name, _vec(AXES[joint.axis].split()), (float(joint.q_min), float(joint.q_max)),
+                          float(p[ROTOR][i]), float(p[VISCOUS][i]), float(fc), ref, imp)
+        links.append(MjcfBody(joint.name + "_link", _vec(joint.xyz), _vec(quaternion(joint.rotation)), m,
+                              _vec(com), _full(ic), hinge, _capsules(joint.collision)))
+    tool = (_vec(spec.tool_xyz), _vec(quaternion(spec.tool_rotation)))
+    body = None
     if payload is not None:
         ic, _ = mujoco_inertia(payload.inertia_kg_m2)
-        out += [f'{indent}<body name="payload" pos="{_fmt(spec.tool_xyz)}" '
-                f'quat="{_fmt(quaternion(spec.tool_rotation))}">',
-                f'{indent}  <inertial pos="{_fmt(payload.com_m)}" mass="{payload.mass_kg:.12g}" fullinertia="'
-                f'{_fmt([ic[0, 0], ic[1, 1], ic[2, 2], ic[0, 1], ic[0, 2], ic[1, 2]])}"/>',
-                f"{indent}</body>"]
-    for i in reversed(range(len(spec.joints))):
-        indent = indent[:-2]
-        out.append(f"{indent}</body>")
-    out.append("  </worldbody>")
-    excludes = []
+        body = MjcfBody("payload", *tool, float(payload.mass_kg), _vec(payload.com_m), _full(ic))
     link = {j.name: j.name + "_link" for j in spec.joints}
     link["base"] = "world"
-    for pair in spec.allowed_contacts:
-        a, b = sorted(pair)
-        if a in link and b in link:
-            excludes.append(f'    <exclude body1={quoteattr(link[a])} body2={quoteattr(link[b])}/>')
-    if excludes:
-        out += ["  <contact>"] + excludes + ["  </contact>"]
+    excludes = tuple((link[a], link[b]) for a, b in (sorted(pair) for pair in spec.allowed_contacts)
+                     if a in link and b in link)
     tendons = []
     share, slope = FRICTION_PIECES[1]
     for i, joint in enumerate(spec.joints):
         fc = p[COULOMB][i] * share
         if fc > 0:
             ref, imp = friction_softness(fc, weights[i], friction_eps / slope)
-            tendons += [f'    <fixed name={quoteattr(joint.name + "_friction")} frictionloss="{fc:.12g}" '
-                        f'solreffriction="{ref}" solimpfriction="{imp}">',
-                        f'      <joint joint={quoteattr(joint.name)} coef="1"/>', "    </fixed>"]
-    if tendons:
-        out += ["  <tendon>"] + tendons + ["  </tendon>"]
-    out.append("  <actuator>")
-    for joint in spec.joints:
-        out.append(f'    <motor name={quoteattr(joint.name)} joint={quoteattr(joint.name)} gear="1" '
-                   f'ctrlrange="{-joint.tau_max:.12g} {joint.tau_max:.12g}"/>')
-    out += ["  </actuator>", "</mujoco>", ""]
-    return "\n".join(out)
+            tendons.append(MjcfFrictionTendon(joint.name + "_friction", joint.name, float(fc), _numbers(ref),
+                                              _numbers(imp)))
+    return MjcfArm(name or f"{spec.name}_identified", tuple(comment), _vec(spec.gravity),
+                   _capsules(spec.base_collision), tuple(links), tool, body, excludes, tuple(tendons),
+                   tuple((j.name, float(j.tau_max)) for j in spec.joints))
+
+
+def to_mjcf(spec, standard: np.ndarray, name: str | None = None, notes=(),
+            friction_eps: float = 0.01, payload=None) -> str:
+    """MJCF text of :func:`mjcf_arm` (its arguments), written by MuJoCo."""
+    from urident.sim.mujoco_model import arm_xml
+
+    return arm_xml(mjcf_arm(spec, standard, name, notes, friction_eps, payload))
 
 
 def write_mjcf(spec, standard: np.ndarray, path: str | Path, name: str | None = None, notes=(),

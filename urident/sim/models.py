@@ -59,6 +59,28 @@ def spec_joint_geometry(spec, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return pos[:, :6], axes
 
 
+@dataclass(frozen=True, eq=False)
+class DriveTerms:
+    """A model's joint drive terms, (6,) each; also read by name (``drive["damping"]``)."""
+
+    armature: np.ndarray        # [kg·m²]
+    damping: np.ndarray         # [N·m·s/rad]
+    frictionloss: np.ndarray    # [N·m]
+
+    KEYS = ("armature", "damping", "frictionloss")
+
+    def __getitem__(self, key: str) -> np.ndarray:
+        if key not in self.KEYS:
+            raise KeyError(key)
+        return getattr(self, key)
+
+    def keys(self) -> tuple[str, ...]:
+        return self.KEYS
+
+    def to_dict(self) -> dict:
+        return {k: getattr(self, k).tolist() for k in self.KEYS}
+
+
 @dataclass(eq=False)
 class SimModel:
     path: Path
@@ -75,6 +97,8 @@ class SimModel:
     qpos_adr: np.ndarray | None = None
     dof_adr: np.ndarray | None = None
     missing_meshes: tuple[str, ...] = ()
+    #: what urident assumed of the file, one line each (a free joint held still, a joint's ref)
+    notes: tuple[str, ...] = ()
 
     def predict(self, q, qd, qdd) -> np.ndarray:
         """(N, 6) joint torques the model needs at the states [N·m]."""
@@ -96,20 +120,19 @@ class SimModel:
         model, data = self.handle
         return np.array([pin.rnea(model, data, a, b, c) for a, b, c in zip(q, qd, qdd)])
 
-    def drive(self) -> dict:
+    def drive(self) -> "DriveTerms":
         """The model's joint drive terms (6,) each: ``armature`` [kg·m²] (URDF: none), ``damping``
         [N·m·s/rad] and ``frictionloss`` [N·m] (MJCF: the joint's plus its ``<joint>_friction``
         tendon's)."""
         if self.fmt != "mjcf":
-            return {"armature": np.zeros(6), "damping": np.array(self.damping, float),
-                    "frictionloss": np.array(self.friction, float)}
+            return DriveTerms(np.zeros(6), np.array(self.damping, float), np.array(self.friction, float))
         from urident.sim.mujoco_model import tendon_frictionloss
 
         m = self.handle
         fl = np.array(m.dof_frictionloss[self.dof_adr], float)
         fl += tendon_frictionloss(m, [f"{n}_friction" for n in self.joint_names])
-        return {"armature": np.array(m.dof_armature[self.dof_adr], float),
-                "damping": np.array(m.dof_damping[self.dof_adr], float), "frictionloss": fl}
+        return DriveTerms(np.array(m.dof_armature[self.dof_adr], float),
+                          np.array(m.dof_damping[self.dof_adr], float), fl)
 
     def link_params(self, spec) -> np.ndarray:
         """(6, 10) the model's link parameters in the paper's form (m, m·ρ, A … F about K_i in K_i's
@@ -206,7 +229,7 @@ def _check_chain(path, spec, names, anchors, axes) -> Alignment:
 
 
 def _load_mjcf(path: Path, spec, joint_map=None) -> SimModel:
-    from urident.sim.mujoco_model import joint_lines, joint_table, load_spec
+    from urident.sim.mujoco_model import joint_lines, joint_table, load_spec, welded
 
     try:
         ET.parse(path)
@@ -216,10 +239,15 @@ def _load_mjcf(path: Path, spec, joint_map=None) -> SimModel:
         raise SimModelError(f"{path}: cannot read: {exc.strerror or exc}") from None
     mjspec, model, missing = load_spec(path)
     table = joint_table(model)
-    for name, kind, *_ in table:
-        if kind == "free":
-            raise SimModelError(f"{path}: <joint name={name!r} type='free'>: the arm's base must be fixed "
-                                "to the world")
+    # a scene that puts the arm on a free joint: the base fixed where the file places it (the free
+    # joint's qpos0); removed, not held still, so that the frictionloss softness (MuJoCo's
+    # dof_invweight0) is the fixed base's. --write-sim keeps it in the written file.
+    free = [name for name, kind, *_ in table if kind == "free"]
+    notes = [f"<joint name={name!r} type='free'>: held still at its qpos0 (the base fixed where the file "
+             "places it)" for name in free]
+    if free:
+        model = welded(mjspec, free)
+        table = joint_table(model)
     hinges = [row for row in table if row[1] == "hinge"]
     if len(hinges) < len(spec.joints):
         other = next((r for r in table if r[1] != "hinge"), None)
@@ -232,12 +260,15 @@ def _load_mjcf(path: Path, spec, joint_map=None) -> SimModel:
     arm = [hinges[k] for k in picked]
     names = tuple(r[0] for r in arm)
     joint_ids = tuple(table.index(r) for r in arm)
+    qpos_adr = np.array([r[2] for r in arm])
+    notes += [f"<joint name={name!r}> has ref = {model.qpos0[a]:.6g} rad: its angle is read as qpos − ref "
+              "(drive it with qpos = q + ref)" for name, a in zip(names, qpos_adr) if model.qpos0[a] != 0]
     anchors, axes = joint_lines(model, joint_ids, check_poses(spec))
     alignment = _check_chain(path, spec, names, anchors, axes)
     return SimModel(path, "mjcf", names, handle=model, damping=np.array(model.dof_damping[[r[3] for r in arm]], float),
                     alignment=alignment, mjspec=mjspec, joint_ids=joint_ids,
-                    qpos_adr=np.array([r[2] for r in arm]), dof_adr=np.array([r[3] for r in arm]),
-                    missing_meshes=tuple(missing))
+                    qpos_adr=qpos_adr, dof_adr=np.array([r[3] for r in arm]),
+                    missing_meshes=tuple(missing), notes=tuple(notes))
 
 
 def _load_urdf(path: Path, spec, friction_eps: float, joint_map=None) -> SimModel:

@@ -4,6 +4,11 @@
 torques (N, 6) [N·m] the model needs: rigid body + armature·q̈ + damping·q̇ + the frictionloss
 constraint's force (+ gravity, from the file's ``<option gravity>``). Contacts are disabled for it:
 a recorded trajectory passed the collision checks, and a touching capsule pair must not add forces.
+
+The arm's angles are read from ``qpos0``: MuJoCo sets a hinge's ``qpos0`` to its ``ref`` (the qpos
+at which the bodies are as the file places them), so the arm's angle q is qpos − ref, and every
+state here sets qpos = qpos0 + q. Every other joint (a gripper's) is held at its ``qpos0``, still;
+free joints are removed first (:func:`welded`).
 """
 
 from __future__ import annotations
@@ -90,7 +95,7 @@ def inverse_dynamics(model, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, *,
             data.qpos[:] = model.qpos0
             out = np.empty_like(np.asarray(q, dtype=float))
             for k in range(q.shape[0]):
-                data.qpos[qpos_adr] = q[k]
+                data.qpos[qpos_adr] = model.qpos0[qpos_adr] + q[k]
                 data.qvel[dof_adr] = qd[k]
                 data.qacc[dof_adr] = qdd[k]
                 mujoco.mj_inverse(model, data)
@@ -154,6 +159,26 @@ def _load_spec(mujoco, path: Path):
     return spec, model, missing
 
 
+def welded(spec, names):
+    """The ``MjModel`` of a copy of ``spec`` without the joints ``names`` (free joints): their
+    bodies stay where the file places them (a free joint's ``qpos0``), fixed to their parents, so
+    inertias seen by the other joints (``dof_invweight0``, the frictionloss softness) are a fixed
+    base's."""
+    mujoco = import_mujoco()
+    edit = spec.copy()
+    for name in names:
+        edit.delete(edit.joint(name))
+    with _warnings_kept(mujoco) as said:
+        try:
+            model = edit.compile()
+        except ValueError as exc:
+            raise MujocoModelError(f"MuJoCo cannot fix the free joints {', '.join(names)}: "
+                                   f"{' '.join(str(exc).split())}") from None
+    if said:
+        raise MujocoModelError(f"MuJoCo warns with the free joints fixed: {said[0]}")
+    return model
+
+
 def joint_table(model) -> list[tuple[str, str, int, int, int]]:
     """(name, type, qpos address, dof address, body id) of every joint, in tree order."""
     mujoco = import_mujoco()
@@ -172,7 +197,7 @@ def joint_lines(model, joint_ids, q: np.ndarray) -> tuple[np.ndarray, np.ndarray
     adr = model.jnt_qposadr[list(joint_ids)]
     anchors, axes = [], []
     for qk in np.atleast_2d(q):
-        data.qpos[adr] = qk
+        data.qpos[adr] = model.qpos0[adr] + qk
         mujoco.mj_kinematics(model, data)
         anchors.append(np.array(data.xanchor[list(joint_ids)]))
         axes.append(np.array(data.xaxis[list(joint_ids)]))
@@ -187,7 +212,8 @@ def body_poses(model, joint_ids, q: np.ndarray) -> dict:
     mujoco = import_mujoco()
     data = mujoco.MjData(model)
     data.qpos[:] = model.qpos0
-    data.qpos[model.jnt_qposadr[list(joint_ids)]] = q
+    adr = model.jnt_qposadr[list(joint_ids)]
+    data.qpos[adr] = model.qpos0[adr] + q
     mujoco.mj_kinematics(model, data)
     joint_body = {int(model.jnt_bodyid[j]): i for i, j in enumerate(joint_ids)}
     arm = np.full(model.nbody, -1)
@@ -238,3 +264,98 @@ def tendon_frictionloss(model, names) -> np.ndarray:
         if t >= 0:
             out[k] = model.tendon_frictionloss[t]
     return out
+
+
+#: the MuJoCo versions whose XML writer's precision urident sets (a private, version-specific hook
+#: of libmujoco: an int of significant digits, thread-local); others write MuJoCo's 6 digits
+_PRECISION_HOOK_VERSIONS = ("3.3.7",)
+#: significant digits of a written double that reads back exactly
+FULL_DIGITS = 17
+
+
+@contextlib.contextmanager
+def _full_precision(mujoco) -> Iterator[bool]:
+    """MuJoCo's writer at :data:`FULL_DIGITS` digits inside (True) where the version has the hook,
+    6 digits otherwise (False): an exported estimate must read back as it was identified."""
+    import ctypes
+
+    lib = None
+    if mujoco.__version__ in _PRECISION_HOOK_VERSIONS:
+        found = sorted(Path(mujoco.__file__).parent.glob("libmujoco.so*")) + sorted(
+            Path(mujoco.__file__).parent.glob("libmujoco*.dylib")) + sorted(Path(mujoco.__file__).parent.glob("mujoco*.dll"))
+        try:
+            lib = ctypes.CDLL(str(found[0])) if found else None
+            get, put = lib._mjPRIVATE__get_xml_precision, lib._mjPRIVATE__set_xml_precision
+        except (OSError, AttributeError):
+            lib = None
+    if lib is None:
+        yield False
+        return
+    get.restype, put.argtypes = ctypes.c_int, [ctypes.c_int]
+    before = get()
+    put(FULL_DIGITS)
+    try:
+        yield True
+    finally:
+        put(before)
+
+
+def arm_xml(arm) -> str:
+    """The MJCF text of a :class:`urident.sim.mjcf.MjcfArm`, built as a ``mujoco.MjSpec`` and written
+    by MuJoCo (17 significant digits; an XML declaration and the arm's notes as the top comment)."""
+    mujoco = import_mujoco()
+    spec = mujoco.MjSpec()
+    spec.modelname = arm.name
+    if arm.comment:
+        spec.comment = " " + "\n     ".join(arm.comment) + " "
+    spec.compiler.degree = False
+    spec.compiler.autolimits = True
+    spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
+    spec.option.gravity = list(arm.gravity)
+    collision = spec.add_default("collision", spec.default)
+    collision.geom.contype, collision.geom.conaffinity, collision.geom.group = 1, 1, 3
+    collision.geom.rgba = [0.6, 0.6, 0.7, 1.0]
+
+    def capsules(body, items):
+        for fromto, radius in items:
+            body.add_geom(collision, type=mujoco.mjtGeom.mjGEOM_CAPSULE, fromto=list(fromto), size=[radius, 0, 0])
+
+    def add(parent, b):
+        body = parent.add_body(name=b.name)
+        body.pos, body.quat = list(b.pos), list(b.quat)
+        body.explicitinertial = True
+        body.mass, body.ipos, body.fullinertia = b.mass, list(b.com), list(b.fullinertia)
+        if b.joint is not None:
+            j = b.joint
+            joint = body.add_joint(name=j.name, type=mujoco.mjtJoint.mjJNT_HINGE)
+            joint.axis, joint.range = list(j.axis), list(j.range)
+            joint.armature, joint.damping, joint.frictionloss = j.armature, j.damping, j.frictionloss
+            if j.solref is not None:
+                joint.solref_friction, joint.solimp_friction = list(j.solref), list(j.solimp)
+        capsules(body, b.capsules)
+        return body
+
+    capsules(spec.worldbody, arm.base_capsules)
+    parent = spec.worldbody
+    for link in arm.links:
+        parent = add(parent, link)
+    parent.add_site(name="tool0", pos=list(arm.tool[0]), quat=list(arm.tool[1]))
+    if arm.payload is not None:
+        add(parent, arm.payload)
+    for a, b in arm.excludes:
+        spec.add_exclude(bodyname1=a, bodyname2=b)
+    for t in arm.tendons:
+        tendon = spec.add_tendon(name=t.name, frictionloss=t.frictionloss, solref_friction=list(t.solref),
+                                 solimp_friction=list(t.solimp))
+        tendon.wrap_joint(t.joint, 1.0)
+    for joint, limit in arm.motors:
+        actuator = spec.add_actuator(name=joint, target=joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        actuator.set_to_motor()
+        actuator.ctrlrange = [-limit, limit]
+    with _warnings_kept(mujoco), _full_precision(mujoco):
+        try:
+            spec.compile()
+            text = spec.to_xml()
+        except ValueError as exc:
+            raise MujocoModelError(f"MuJoCo cannot build the model: {' '.join(str(exc).split())}") from None
+    return '<?xml version="1.0"?>\n' + text
