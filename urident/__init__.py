@@ -9,7 +9,7 @@ command line starts fast::
 
 from importlib import import_module
 
-from urident.version import __version__
+from urident.version import __version__ as __version__
 
 
 def __getattr__(name: str):
