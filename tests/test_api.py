@@ -121,6 +121,7 @@ def test_check_trajectory_reports_what_the_command_checks(capsys):
     ("ros2_bag.py", "validated on the second bag"),
     ("gap_diagnosis.py", "baseline e_N"),
     ("payload.py", "set_target_payload("),
+    ("mujoco_model.py", "corrected model, measured by MuJoCo"),
 ])
 def test_examples_run(script, expect):
     """Each example as a user runs it, from the repository root."""
