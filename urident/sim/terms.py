@@ -73,7 +73,8 @@ def inexpressible_terms(params, spec, fmt: str, data=None) -> list[Term]:
     if data is not None:
         from urident.ident.design import design_blocks
 
-        blocks = design_blocks(spec, params.model, data.q, data.qd, data.qdd, data.segment, data.t)
+        blocks = design_blocks(spec, params.model, data.q, data.qd, data.qdd, data.segment, data.t,
+                               temperature=data.temperature)
         contributions = blocks * values          # (N, 6, n) torque of each column
         tau_rms = np.sqrt(np.mean(data.tau ** 2, axis=0))
         tau_rms[tau_rms == 0] = np.inf
