@@ -73,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
         recordings = [load_log_from_args(path, args, robot=spec.name, say_signal=True) for path in args.valid]
         data = predict_recordings(params, recordings, spec, payload=payload).data
     header = [f"exported by urident from {args.params} (robot {spec.name}, method {params.method}, "
-              f"Coulomb model {params.model.coulomb}, tanh eps {params.model.friction_eps:g} rad/s)"]
+              f"Coulomb model {params.model.coulomb_text()}, tanh eps {params.model.friction_eps:g} rad/s)"]
     header += _payload_note(args, payload)
     if data is not None:
         header.append("shares: RMS of the term's torque / RMS of the measured torque on "
