@@ -143,8 +143,8 @@ def identify(logs, robot, method: str = "ols", preset: str | None = None, *, mod
         raise ConfigError(f"method {method!r} unknown (known: {', '.join(METHODS)}, all)")
     methods = METHODS if method == "all" else (method,)
     spec = _spec(robot)
-    choice = resolve_model(preset, {**dict(overrides or {}), "weighting": weighting,
-                                    "select_dahl_rad": select_dahl_rad}, model=model, names=option_names)
+    given = {k: v for k, v in (("weighting", weighting), ("select_dahl_rad", select_dahl_rad)) if v is not None}
+    choice = resolve_model(preset, {**dict(overrides or {}), **given}, model=model, names=option_names)
     config = preprocess if preprocess is not None else PreprocessConfig(trim_rest=True)
     gains = resolve_drive_gains(spec, drive_gains)
     signals: list[str] = []  # which signal gave each log's torques, said before it is freed
