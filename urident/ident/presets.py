@@ -1,4 +1,6 @@
-"""Named identification configurations: ``paper`` (the paper's method), ``real-robot`` and ``auto``.
+"""Named identification configurations: ``paper`` (the paper's method), ``real-robot`` and ``auto``,
+and the one place a preset meets a caller's explicit options (:func:`resolve_model`: the command
+line's flags and the API's keywords alike) and what it leaves to the data (:func:`choose_on_data`).
 
 ``auto``: the reduced base set, per-joint weighting, a Dahl presliding Coulomb state (driven by
 ∫q̇, δ chosen by blocked CV) and each joint's friction terms chosen by blocked CV on the
