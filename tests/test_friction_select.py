@@ -92,6 +92,78 @@ def test_selection_finds_the_joint_with_asymmetric_friction_and_its_cv_is_exact(
     assert "J5: tanh;" in text and "tried per joint" in text and "sigmoid+offset eps=0.05" in text
 
 
+def thermal_run(spec, effect: bool):
+    """A 10 s run whose joint temperatures drift up by 4-12 °C; with ``effect``, joint 3's friction
+    follows them through the simulated controller's thermal_drift effect (viscous −2 %/°C,
+    Coulomb −1 %/°C relative to the first sample, no hidden warm-up)."""
+    from dataclasses import replace
+
+    from urident.simcontroller.effects import load_effects, parse_effects_text
+
+    rec, qdd, _ = synthetic_recording(spec, duration_s=10.0, rate_hz=125.0, seed=5)
+    n = len(rec)
+    temps = 30.0 + np.array([8.0, 10.0, 12.0, 6.0, 5.0, 4.0]) * np.linspace(0.0, 1.0, n)[:, None]
+    current = rec.current
+    if effect:
+        es = load_effects(parse_effects_text(
+            "effects:\n  - {name: thermal_drift, joints: [3], viscous_change_per_c: -0.02, "
+            "coulomb_change_per_c: -0.01, warmup_c: 0}\n"), spec=spec)
+        current = current + es.offline_extra_torque(rec.t, rec.q, rec.qd, qdd, np.zeros((n, 6)), temps) / spec.drive_gains
+    return replace(rec, current=current, temperature=temps)
+
+
+def temperature_terms(model):
+    return [[t for t in terms if t.startswith(("tempvisc", "tempcoul"))] for terms in model.joint_extras]
+
+
+def test_temperature_terms_chosen_where_friction_follows_the_temperature(spec, tmp_path):
+    from dataclasses import replace
+
+    from urident.ident import PreprocessConfig, predict_recordings, prepare
+
+    data = prepare([thermal_run(spec, True)], spec, PreprocessConfig())
+    assert data.temperature.shape == data.q.shape
+    sel = select_friction(spec, data, ModelConfig(reduced=True), dahl_grid=(2e-4,))
+    chosen = temperature_terms(sel.model)
+    assert chosen[2] and not any(chosen[j] for j in (0, 1, 3, 4, 5))
+    assert chosen[2][0].endswith(f"@{np.round(data.temperature[:, 2].mean(), 1):g}")   # T_ref: the mean
+    assert "joint temperature: offered" in sel.text()
+    plain = select_friction(spec, prepare([thermal_run(spec, False)], spec, PreprocessConfig()),
+                            ModelConfig(reduced=True), dahl_grid=(2e-4,))
+    assert not any(temperature_terms(plain.model))
+    # the model predicts from a log's temperatures, and says so when a log has none
+    fitted = identify(spec, data, "ols", sel.model, "joint")
+    save_params(fitted, tmp_path / "p.yaml")
+    back = load_params(tmp_path / "p.yaml")
+    assert back.model == sel.model
+    rec = thermal_run(spec, True)
+    assert predict_recordings(back, rec, spec).validation().rms_nm[2] < 0.3
+    with pytest.raises(ConfigError, match="no \\(finite\\) joint temperature"):
+        predict_recordings(back, replace(rec, temperature=None), spec)
+
+
+def test_temperature_not_offered_without_it_and_never_filled(spec, gaz_data):
+    from dataclasses import replace
+
+    from urident.ident import PreprocessConfig, prepare
+
+    rec, _, _ = synthetic_recording(spec, duration_s=2.0, rate_hz=125.0, seed=3)
+    warm = replace(rec, temperature=np.full((len(rec), 6), 35.0))
+    assert prepare([warm, warm], spec, PreprocessConfig()).temperature.shape == (2 * len(rec), 6)
+    assert prepare([warm, rec], spec, PreprocessConfig()).temperature is None   # one log lacks it
+    bad = np.full((len(rec), 6), 35.0)
+    bad[5, 2] = np.nan
+    assert prepare([replace(rec, temperature=bad)], spec, PreprocessConfig()).temperature is None
+    sel = select_friction(spec, gaz_data.select(slice(0, 600)), ModelConfig(reduced=True), folds=3,
+                          dahl_grid=())
+    assert "joint temperature: not offered: the logs carry no joint temperature" in sel.text()
+    assert sel.t_ref is None and not any("temperature" in f for f in sel.family)
+    with pytest.raises(ConfigError, match="reference temperature"):
+        ModelConfig(joint_extras=(("tempvisc",),) + ((),) * 5)
+    with pytest.raises(ConfigError, match="reference temperature"):
+        ModelConfig(extras=("tempcoul",))
+
+
 def test_cli_preset_auto(spec, tmp_path, capsys):
     from urident.cli.main import main
     from urident.logs import LogWriter

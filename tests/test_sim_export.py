@@ -265,3 +265,22 @@ def test_export_payload_is_a_body_on_the_flange_in_mujoco_and_pinocchio(params_f
     p[body_slice(5)] += payload.body_params(spec)
     p[DRIVE] = 0
     np.testing.assert_allclose(rigid, regressor_blocks(spec, d.q, d.qd, d.qdd) @ p, atol=1e-9 * np.abs(rigid).max())
+
+
+def test_export_names_each_joints_coulomb_state(params_files, tmp_path, capsys):
+    """A model whose joints carry their own Coulomb state (``--preset auto``) is described per joint."""
+    from dataclasses import replace
+
+    from urident.ident import load_params, save_params
+
+    params = load_params(params_files["stribeck"])
+    states = ("dahl@0.0002", "tanh", "tanh", "dahl@5e-05", "tanh", "tanh")
+    mixed = replace(params, model=replace(params.model, joint_coulomb=states))
+    save_params(mixed, tmp_path / "mixed.yaml")
+    xml = tmp_path / "m.xml"
+    assert main(["export", str(tmp_path / "mixed.yaml"), "--mjcf", str(xml)]) == 0
+    out = capsys.readouterr().out
+    header = xml.read_text().split("<compiler")[0]
+    per_joint = "per joint: J1 dahl@0.0002, J2 tanh, J3 tanh, J4 dahl@5e-05, J5 tanh, J6 tanh"
+    assert f"Coulomb model {per_joint}" in header and "Coulomb model tanh" not in header
+    assert f"Coulomb friction state ({per_joint})" in out

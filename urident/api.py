@@ -118,12 +118,15 @@ def identify(logs, robot, method: str = "ols", preset: str | None = None, *, mod
              weighting: str | None = None, select_dahl_rad: bool | None = None, preprocess=None,
              drive_gains=None, payload=None, regularisation: float | None = None,
              log_options: Mapping | None = None, progress: bool = False,
-             sessions: bool = False) -> Identification:
+             sessions: bool = False, overrides: Mapping | None = None,
+             option_names: Mapping | None = None) -> Identification:
     """Identify base parameters from ``logs`` (paths or Recordings, loaded one at a time).
 
     ``method``: ``ols`` (the paper's), ``bounded``, ``consistent`` or ``all``. ``preset``: a named
-    configuration (``paper``, ``real-robot``); ``model`` (a :class:`urident.ident.ModelConfig`),
-    ``weighting`` and ``select_dahl_rad`` override it. ``preprocess``: a
+    configuration (``paper``, ``auto``, ``real-robot``); ``model`` (a
+    :class:`urident.ident.ModelConfig`), ``weighting``, ``select_dahl_rad`` and ``overrides``
+    (single model options, :func:`urident.ident.presets.resolve_model`; ``option_names``: how
+    the caller spells them in errors) override it. ``preprocess``: a
     :class:`urident.ident.PreprocessConfig` (default: rest trimmed). ``drive_gains``: six joint-side
     gains i_G·k [N·m/A], a GAINS.yaml path, or None for the robot file's. ``payload``: a
     :class:`urident.model.payload.Payload` or a payload file the logs carry (its torque is removed).
@@ -132,7 +135,7 @@ def identify(logs, robot, method: str = "ols", preset: str | None = None, *, mod
     joint where blocked CV says they pay (:func:`urident.ident.sessions.fit_sessions`)."""
     from urident.ident import PreprocessConfig, identify_all, prepare
     from urident.ident.estimate_consistent import DEFAULT_REGULARISATION
-    from urident.ident.presets import CV_FOLDS, DAHL_GRID, get_preset
+    from urident.ident.presets import choose_on_data, resolve_model
     from urident.ident.report import comparison_report, logs_used
     from urident.ident.torque import describe_signal, resolve_drive_gains
 
@@ -140,11 +143,8 @@ def identify(logs, robot, method: str = "ols", preset: str | None = None, *, mod
         raise ConfigError(f"method {method!r} unknown (known: {', '.join(METHODS)}, all)")
     methods = METHODS if method == "all" else (method,)
     spec = _spec(robot)
-    chosen = get_preset(preset) if preset else None
-    model = model if model is not None else (chosen.model if chosen else None)
-    weighting = weighting or (chosen.weighting if chosen else "none")
-    if select_dahl_rad is None:
-        select_dahl_rad = bool(chosen and chosen.select_dahl_rad)
+    given = {k: v for k, v in (("weighting", weighting), ("select_dahl_rad", select_dahl_rad)) if v is not None}
+    choice = resolve_model(preset, {**dict(overrides or {}), **given}, model=model, names=option_names)
     config = preprocess if preprocess is not None else PreprocessConfig(trim_rest=True)
     gains = resolve_drive_gains(spec, drive_gains)
     signals: list[str] = []  # which signal gave each log's torques, said before it is freed
@@ -165,23 +165,8 @@ def identify(logs, robot, method: str = "ols", preset: str | None = None, *, mod
         from urident.ident.payload import without_payload
 
         data = without_payload(spec, _payload(payload, spec), data)
-    if model is None:
-        from urident.ident import ModelConfig
-
-        model = ModelConfig()
-    selection = ""
-    if chosen is not None and chosen.select_friction:
-        from urident.ident.friction_select import select_friction
-
-        chosen_terms = select_friction(spec, data, model)
-        model, selection = chosen_terms.model, chosen_terms.text()
-    elif select_dahl_rad:
-        from urident.ident.crossval import select_dahl_rad as select
-
-        model, scores = select(spec, data, model, DAHL_GRID, weighting, "ols", CV_FOLDS)
-        selection = (f"dahl_rad selected by {CV_FOLDS}-fold blocked CV on the identification data: "
-                     f"{model.dahl_rad:g} rad (mean held-out RMS [N·m] per distance: "
-                     + ", ".join(f"{s.model.dahl_rad:g}: {s.mean_rms_nm:.3f}" for s in scores) + ")")
+    resolved = choose_on_data(spec, data, choice)
+    model, weighting, selection = resolved.model, resolved.weighting, resolved.text()
     if sessions:
         from urident.ident.sessions import fit_sessions
 
@@ -190,8 +175,8 @@ def identify(logs, robot, method: str = "ols", preset: str | None = None, *, mod
     reg = DEFAULT_REGULARISATION if regularisation is None else regularisation
     models = identify_all(spec, data, methods, model, weighting, reg, config)
     report = "\n".join(signals) + "\n" + comparison_report(models)
-    if preset:
-        report = f"preset {preset}\n" + report
+    if choice.preset:
+        report = f"preset {choice.preset}\n" + report
     if selection:
         report = selection + "\n" + report
     report = report + "\n" + logs_used(data.provenance)

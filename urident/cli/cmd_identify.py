@@ -131,54 +131,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def preset_name(args: argparse.Namespace) -> str | None:
-    name = getattr(args, "preset", None)
-    return "real-robot" if name == "best" else name
+#: The model options' flags: how --preset and the overrides of
+#: :func:`urident.ident.presets.resolve_model` are spelled in its errors.
+OPTION_FLAGS = {"preset": "--preset", "reduced": "--reduced", "friction_eps": "--friction-eps",
+                "coulomb": "--coulomb", "hold_velocity": "--hold-velocity", "dahl_rad": "--dahl-rad",
+                "dahl_source": "--dahl-source", "extras": "--friction-extra", "stribeck_vs": "--stribeck-vs",
+                "weighting": "--weighting"}
 
 
-def model_config(args: argparse.Namespace):
-    """(ModelConfig, weighting, select_dahl_rad) from the preset (if any) and explicit options."""
-    from dataclasses import replace
-
-    from urident.errors import ConfigError
-    from urident.ident import ModelConfig
-    from urident.ident.presets import get_preset
-
-    name = preset_name(args)
-    preset = get_preset(name) if name else None
-    if preset and preset.select_friction:
-        given = [flag for attr, flag in _AUTO_CONFLICTS if getattr(args, attr, None) is not None]
-        if given:
-            raise ConfigError(f"{given[0]} conflicts with --preset auto, which chooses the friction "
-                              "terms and weighting itself from the identification logs")
-    base = preset.model if preset else ModelConfig()
-    weighting = args.weighting or (preset.weighting if preset else "none")
-    select = bool(preset and preset.select_dahl_rad)
-    changes = {}
-    for attr in ("reduced", "friction_eps", "coulomb", "hold_velocity", "dahl_source", "stribeck_vs"):
-        value = getattr(args, attr, None)
-        if value is not None:
-            changes[attr] = value
-    if args.dahl_rad is not None:
-        if args.dahl_rad == "auto":
-            select = True
-        else:
-            changes["dahl_rad"] = args.dahl_rad
-            select = False
-    if args.friction_extra is not None:
-        changes["extras"] = args.friction_extra
-    model = replace(base, **changes)
-    uses_dahl = model.coulomb == "dahl" or "dahl" in model.extras
-    if select and not uses_dahl:
-        if args.dahl_rad == "auto":
-            raise ConfigError("--dahl-rad auto needs a Dahl state: --coulomb dahl or --friction-extra dahl")
-        select = False   # the preset's δ selection is moot once the Dahl state is overridden
-    return model, weighting, select
-
-
-_AUTO_CONFLICTS = (("coulomb", "--coulomb"), ("hold_velocity", "--hold-velocity"), ("dahl_rad", "--dahl-rad"),
-                   ("dahl_source", "--dahl-source"), ("friction_extra", "--friction-extra"),
-                   ("stribeck_vs", "--stribeck-vs"), ("weighting", "--weighting"))
+def model_overrides(args: argparse.Namespace) -> dict:
+    """The model options given on the command line (None: not given), keyed as
+    :func:`urident.ident.presets.resolve_model` takes them."""
+    return {key: getattr(args, "friction_extra" if key == "extras" else key, None)
+            for key in OPTION_FLAGS if key != "preset"}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -206,10 +171,9 @@ def run(args: argparse.Namespace) -> int:
     options.check_rerun_args(args)  # a missing viewer or a bad --save fails at once
     paths = logs_from_args(args.logs, args.logs_from)
     spec = load_robot(args.robot)
-    model, weighting, select = model_config(args)
     result = api.identify(
         (load_log_from_args(path, args, robot=spec.name) for path in progress_iter(paths, "loading logs")),
-        spec, args.method, preset_name(args), model=model, weighting=weighting, select_dahl_rad=select,
+        spec, args.method, args.preset, overrides=model_overrides(args), option_names=OPTION_FLAGS,
         preprocess=preprocess_config(args), drive_gains=args.drive_gains,
         payload=options.load_payload_arg(args, spec), regularisation=args.regularisation,
         sessions=args.sessions)

@@ -120,7 +120,8 @@ class SetContext:
         keep = self.keeps_design()
         parts = []
         # as urident.ident.predict_prepared: timestamps drive a velocity-driven friction state
-        for a, b, blocks in design_chunks(self.spec, self.model.model, p.q, p.qd, p.qdd, p.segment, p.t, size):
+        for a, b, blocks in design_chunks(self.spec, self.model.model, p.q, p.qd, p.qdd, p.segment, p.t, size,
+                                          temperature=p.temperature):
             if keep:
                 blocks.flags.writeable = False      # shared by every later pass
                 parts.append((a, b, blocks))

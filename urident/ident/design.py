@@ -20,19 +20,26 @@ from urident.ident.friction import COULOMB_MODELS, DAHL_SOURCES, dahl_states, ho
 from urident.model.parameters import (COULOMB_OFFSET, EXTRA_COLUMNS, extra_column_names, joint_column_name,
                                       nonnegative_parameters, parameter_kinds)
 
-EXTRA_FEATURES = tuple(EXTRA_COLUMNS)
+#: Friction features that depend on the logged joint temperature; per joint only, each with its
+#: reference temperature T_ref [°C] (``tempvisc@35.2``), at which the base friction holds.
+TEMPERATURE_FEATURES = ("tempvisc", "tempcoul")
+#: Features the model's ``extras`` (every joint, no own parameter) may hold.
+EXTRA_FEATURES = tuple(x for x in EXTRA_COLUMNS if x not in TEMPERATURE_FEATURES)
 #: Per-joint terms that carry a parameter of their own (``sigmoid@0.05``): its meaning and unit;
 #: without one the model's (friction_eps, stribeck_vs, dahl_rad; harmonic 1) is used.
 TERM_PARAMETERS = {"sigmoid": "eps [rad/s]", "sigoffset": "eps [rad/s]", "stribeck": "v_s [rad/s]",
-                   "dahl": "delta [rad]", "poscos": "harmonic [-]", "possin": "harmonic [-]"}
+                   "dahl": "delta [rad]", "poscos": "harmonic [-]", "possin": "harmonic [-]",
+                   "tempvisc": "T_ref [°C]", "tempcoul": "T_ref [°C]"}
 
 
 def parse_term(term: str) -> tuple[str, float | None]:
     """``'sigmoid@0.05'`` → ('sigmoid', 0.05); ``'load'`` → ('load', None). ConfigError if unknown."""
     name, sep, value = str(term).partition("@")
-    if name not in EXTRA_FEATURES:
-        raise ConfigError(f"friction feature {name!r} unknown (known: {', '.join(EXTRA_FEATURES)})")
+    if name not in EXTRA_COLUMNS:
+        raise ConfigError(f"friction feature {name!r} unknown (known: {', '.join(EXTRA_COLUMNS)})")
     if not sep:
+        if name in TEMPERATURE_FEATURES:
+            raise ConfigError(f"friction term {term!r} needs its reference temperature: '{name}@T_REF' [°C]")
         return name, None
     if name not in TERM_PARAMETERS:
         raise ConfigError(f"friction feature {name!r} takes no parameter (given {term!r})")
@@ -40,7 +47,10 @@ def parse_term(term: str) -> tuple[str, float | None]:
         v = float(value)
     except ValueError:
         raise ConfigError(f"friction term {term!r}: {value!r} is not a number") from None
-    if not (np.isfinite(v) and v > 0):
+    if name in TEMPERATURE_FEATURES:
+        if not np.isfinite(v):
+            raise ConfigError(f"friction term {term!r}: its reference temperature must be finite")
+    elif not (np.isfinite(v) and v > 0):
         raise ConfigError(f"friction term {term!r}: its parameter must be positive")
     return name, v
 
@@ -87,6 +97,20 @@ class ModelConfig:
         """(joint, feature, own parameter or None) of every per-joint term, in column order."""
         return [(j, *parse_term(t)) for j, terms in enumerate(self.joint_extras) for t in terms]
 
+    @property
+    def uses_temperature(self) -> bool:
+        """Whether a friction term depends on the logged joint temperature."""
+        return any(x in TEMPERATURE_FEATURES for _, x, _ in self.joint_terms())
+
+    def coulomb_text(self) -> str:
+        """The Coulomb state in one phrase: ``tanh``, ``dahl (delta 0.0002 rad)`` or, when the
+        joints have their own, ``per joint: J1 dahl@0.0002, J2 tanh, ...``."""
+        if self.joint_coulomb:
+            return "per joint: " + ", ".join(f"J{j + 1} {c}" for j, c in enumerate(self.joint_coulomb))
+        if self.coulomb == "dahl":
+            return f"dahl (delta {self.dahl_rad:g} rad from {self.dahl_source})"
+        return self.coulomb
+
     def __post_init__(self) -> None:
         if not self.friction_eps > 0:
             raise ConfigError(f"friction_eps must be positive, not {self.friction_eps}")
@@ -94,6 +118,9 @@ class ModelConfig:
             raise ConfigError(f"coulomb model {self.coulomb!r} unknown (known: {', '.join(COULOMB_MODELS)})")
         object.__setattr__(self, "extras", tuple(self.extras))
         for x in self.extras:
+            if x in TEMPERATURE_FEATURES:
+                raise ConfigError(f"friction feature {x!r} needs a reference temperature: give it per joint "
+                                  f"(joint_extras '{x}@T_REF', T_REF in °C)")
             if x not in EXTRA_FEATURES:
                 raise ConfigError(f"friction feature {x!r} unknown (known: {', '.join(EXTRA_FEATURES)})")
         if len(set(self.extras)) != len(self.extras):
@@ -199,7 +226,9 @@ def column_expressions(spec, config: ModelConfig) -> list[str]:
             "asym": "Coulomb asymmetry |z|", "sigmoid": "sigmoid Coulomb tanh(qd/eps)",
             "sigoffset": "sigmoid offset tanh(qd/eps)^2", "quadvisc": "quadratic viscous qd*|qd|",
             "poscos": "position-dependent friction z*cos(k*q)",
-            "possin": "position-dependent friction z*sin(k*q)"}
+            "possin": "position-dependent friction z*sin(k*q)",
+            "tempvisc": "temperature-dependent viscous friction qd*(T-T_ref)",
+            "tempcoul": "temperature-dependent Coulomb friction z*(T-T_ref)"}
     for x in config.extras:
         expr += [f"{desc[x]} of joint {j + 1}" for j in range(6)]
     for j, x, v in config.joint_terms():
@@ -263,9 +292,10 @@ def nominal_link_torque(spec, blocks: np.ndarray) -> np.ndarray:
 
 
 def design_blocks(spec, config: ModelConfig, q, qd, qdd, segment=None, t=None,
-                  state: dict | None = None) -> np.ndarray:
+                  state: dict | None = None, temperature=None) -> np.ndarray:
     """(N, 6, n) regressor of the identification model (see module doc). ``t`` (N,) timestamps are
-    needed by ``dahl_source='velocity'`` (without them the Dahl state follows the positions).
+    needed by ``dahl_source='velocity'`` (without them the Dahl state follows the positions);
+    ``temperature`` (N, 6) joint temperatures [°C] by the temperature terms.
     ``state`` (a stream, one segment): the history-driven friction states at the first sample
     (empty: the segment starts there), updated in place to those at the last sample."""
     from urident.model import regressor_blocks
@@ -297,14 +327,21 @@ def design_blocks(spec, config: ModelConfig, q, qd, qdd, segment=None, t=None,
         for c, (j, x, v) in enumerate(terms):
             key = (x, v)
             if key not in cache:
-                cache[key] = _feature(config, x, v, q, qd, z, load, dahl)
+                cache[key] = _feature(config, x, v, q, qd, z, load, dahl, temperature)
             extra[:, j, c] = cache[key][:, j]
         out.append(extra)
     return np.concatenate(out, axis=2)
 
 
-def _feature(config: ModelConfig, x: str, v: float | None, q, qd, z, load, dahl) -> np.ndarray:
+def _feature(config: ModelConfig, x: str, v: float | None, q, qd, z, load, dahl,
+             temperature=None) -> np.ndarray:
     """(N, 6) values of extra feature ``x`` (own parameter ``v`` or None) on every joint."""
+    if x in TEMPERATURE_FEATURES:
+        if temperature is None:
+            raise ConfigError(f"friction term {x}@{v:g} needs the joint temperatures, and the data carry none")
+        temperature = np.asarray(temperature, dtype=float)
+        return (features.temperature_viscous(qd, temperature, v) if x == "tempvisc"
+                else features.temperature_coulomb(z, temperature, v))
     if x == "offset":
         return features.offset(z.shape)
     if x == "stribeck":
@@ -331,7 +368,7 @@ CHUNK_SAMPLES = 8192   # samples per regressor chunk: ≈ 8192·6·78·8 B = 31 
 
 
 def design_chunks(spec, config: ModelConfig, q, qd, qdd, segment=None, t=None,
-                  chunk: int = CHUNK_SAMPLES):
+                  chunk: int = CHUNK_SAMPLES, temperature=None):
     """Yield ``(start, stop, blocks)``: :func:`design_blocks` of samples [start, stop) equal to the
     rows of the whole-array call, at most ``chunk`` samples at a time (bounded memory). A chunk never
     spans two segments; within one, the next chunk restarts one sample early with the friction
@@ -351,13 +388,14 @@ def design_chunks(spec, config: ModelConfig, q, qd, qdd, segment=None, t=None,
             lo = start - 1 if start > a else start
             part = slice(lo, stop)
             blocks = design_blocks(spec, config, q[part], qd[part], qdd[part], None,
-                                   None if t is None else t[part], state)
+                                   None if t is None else t[part], state,
+                                   None if temperature is None else temperature[part])
             yield start, stop, blocks[start - lo:]
             start = stop
 
 
 def design_matrix(spec, config: ModelConfig, q, qd, qdd, segment=None, t=None,
-                  state: dict | None = None) -> np.ndarray:
+                  state: dict | None = None, temperature=None) -> np.ndarray:
     """Stacked (6N, n) regressor, row 6k + j."""
-    blocks = design_blocks(spec, config, q, qd, qdd, segment, t, state)
+    blocks = design_blocks(spec, config, q, qd, qdd, segment, t, state, temperature)
     return blocks.reshape(-1, blocks.shape[2])

@@ -18,6 +18,9 @@ Each function returns the values of a column that is linear in its coefficient, 
 * :func:`quadratic_viscous`: q̇·|q̇|, a convex viscous term;
 * :func:`position_friction`: z·cos(k·q), z·sin(k·q), Coulomb friction varying with the position at
   harmonic k (k periods per joint revolution);
+* :func:`temperature_viscous`, :func:`temperature_coulomb`: q̇·(T − T_ref) and z·(T − T_ref),
+  viscous and Coulomb friction changing with the joint temperature T [°C] (the lubricant's
+  viscosity falls as it warms), T_ref the temperature at which the base friction holds;
 * :func:`link_torque`: the link-side rigid-body torque of a 78-vector (no rotor inertia, no
   friction), the τ_L of the identification model's load friction;
 * :func:`tool_body_regressor`, :func:`payload_torque`, :func:`payload_columns`: the torque of a
@@ -89,6 +92,16 @@ def position_friction(q: np.ndarray, coulomb_state: np.ndarray, harmonic: float)
     k (k periods per joint revolution), e.g. a flexspline's once- or twice-per-turn variation."""
     arg = harmonic * np.asarray(q, dtype=float)
     return coulomb_state * np.cos(arg), coulomb_state * np.sin(arg)
+
+
+def temperature_viscous(qd: np.ndarray, temperature: np.ndarray, t_ref: float) -> np.ndarray:
+    """q̇·(T − T_ref) for velocities ``qd`` [rad/s] and joint temperatures ``temperature`` [°C]."""
+    return np.asarray(qd, dtype=float) * (np.asarray(temperature, dtype=float) - t_ref)
+
+
+def temperature_coulomb(coulomb_state: np.ndarray, temperature: np.ndarray, t_ref: float) -> np.ndarray:
+    """z·(T − T_ref) for the Coulomb state z and joint temperatures ``temperature`` [°C]."""
+    return coulomb_state * (np.asarray(temperature, dtype=float) - t_ref)
 
 
 def link_torque(blocks: np.ndarray, params: np.ndarray) -> np.ndarray:

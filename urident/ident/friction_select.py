@@ -6,9 +6,11 @@ columns linear in their coefficients (:mod:`urident.ident.features`): a constant
 asymmetry |z|, Gaz et al.'s sigmoid with a velocity offset (linearised: tanh(q̇/ε) and tanh²(q̇/ε),
 ε on a grid), a smooth sigmoid alone, Stribeck (v_s on a grid), square-root and quadratic viscous
 (linear viscous is in the base set), load-dependent Coulomb and position-dependent Coulomb
-friction at harmonics 1-3 of the joint angle; the Dahl presliding state is a choice of the joint's
-Coulomb state (below), not a term beside it. Joint temperature is not offered: prepared data carry
-no temperature yet. Choices and measurements: ``docs/friction-selection.md``.
+friction at harmonics 1-3 of the joint angle, and, when every log carries joint temperatures,
+viscous and Coulomb friction changing with the temperature (q̇·(T − T_ref), z·(T − T_ref), T_ref
+each joint's mean temperature in the data); the Dahl presliding state is a choice of the joint's
+Coulomb state (below), not a term beside it. Choices and measurements:
+``docs/friction-selection.md``.
 
 Procedure, for each Coulomb state of the base model (tanh, ε = the model's; a Dahl state driven by
 ∫q̇ with δ from :data:`DAHL_GRID`):
@@ -37,7 +39,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from urident.ident.design import ModelConfig, base_for, design_chunks, parse_term
+from urident.ident.design import TEMPERATURE_FEATURES, ModelConfig, base_for, design_chunks, parse_term, term_text
 from urident.ident.preprocess import Prepared
 from urident.ident.reduced import one_blas_thread
 
@@ -62,9 +64,11 @@ class Term:
     features: tuple[str, ...]
 
 
-def family(base: ModelConfig) -> tuple[Term, ...]:
+def family(base: ModelConfig, temperature: bool = False) -> tuple[Term, ...]:
     """The candidate terms on top of ``base`` (module doc); features identical to the base's
-    Coulomb column are left out (a term that keeps none is dropped)."""
+    Coulomb column are left out (a term that keeps none is dropped). ``temperature``: the data
+    carry joint temperatures (the temperature terms are offered; their features are named without
+    T_ref here, each joint's is set by :func:`joint_feature`)."""
     terms = [Term("offset", ("offset",)), Term("asymmetric Coulomb", ("asym",))]
     terms += [Term(f"sigmoid+offset eps={e:g}", (f"sigmoid@{e:g}", f"sigoffset@{e:g}")) for e in SIGMOID_EPS]
     terms += [Term(f"sigmoid eps={e:g}", (f"sigmoid@{e:g}",)) for e in SIGMOID_EPS]
@@ -72,6 +76,8 @@ def family(base: ModelConfig) -> tuple[Term, ...]:
     terms += [Term("sqrt viscous", ("sqrtvisc",)), Term("quadratic viscous", ("quadvisc",)),
               Term("load Coulomb", ("load",))]
     terms += [Term(f"position k={k}", (f"poscos@{k}", f"possin@{k}")) for k in HARMONICS]
+    if temperature:
+        terms += [Term("temperature viscous", ("tempvisc",)), Term("temperature Coulomb", ("tempcoul",))]
     out = []
     for t in terms:
         kept = tuple(f for f in t.features if not _same_as_coulomb(base, f))
@@ -80,7 +86,19 @@ def family(base: ModelConfig) -> tuple[Term, ...]:
     return tuple(out)
 
 
+def joint_feature(feature: str, t_ref: np.ndarray | None, j: int) -> str:
+    """The feature as joint ``j`` carries it: a temperature term with that joint's T_ref [°C]."""
+    return term_text(feature, float(t_ref[j])) if feature in TEMPERATURE_FEATURES else feature
+
+
+def reference_temperatures(data: Prepared) -> np.ndarray | None:
+    """(6,) each joint's mean logged temperature [°C] to 0.1 °C (None without temperatures)."""
+    return None if data.temperature is None else np.round(np.mean(data.temperature, axis=0), 1)
+
+
 def _same_as_coulomb(base: ModelConfig, feature: str) -> bool:
+    if feature in TEMPERATURE_FEATURES:
+        return False
     name, value = parse_term(feature)
     if base.coulomb == "tanh" and name == "sigmoid":
         return np.isclose(value, base.friction_eps)
@@ -119,6 +137,7 @@ class FrictionSelection:
     bases: tuple[tuple[str, np.ndarray], ...]
     family: tuple[str, ...]
     folds: int
+    t_ref: tuple[float, ...] | None = None   # per joint [°C]; None: the logs carry no joint temperature
 
     @property
     def mean_rms_nm(self) -> float:
@@ -129,6 +148,9 @@ class FrictionSelection:
                  f"data (a term kept when its fold gains have mean > {MIN_T:g} standard errors and the "
                  f"joint's held-out RMS falls >= {100 * MIN_GAIN:g} %)",
                  f"  terms tried per joint: {'; '.join(self.family)}",
+                 "  joint temperature: " + ("not offered: the logs carry no joint temperature" if self.t_ref is None
+                                            else "offered, T_ref [°C] per joint (the data's mean): "
+                                            + " ".join(f"{v:g}" for v in self.t_ref)),
                  "  Coulomb states tried, each joint's held-out RMS [N·m] after its selection (the state with the "
                  "lowest mean is shared; a joint takes its own best when that passes the term rule):"]
         lines += [f"    {b:<18}" + " ".join(f"{v:6.3f}" for v in r) for b, r in self.bases]
@@ -143,6 +165,7 @@ class FrictionSelection:
 
     def to_dict(self) -> dict:
         return {"model": self.model.as_dict(), "folds": self.folds, "family": list(self.family),
+                "temperature_ref_c": None if self.t_ref is None else list(self.t_ref),
                 "bases": {b: [float(v) for v in r] for b, r in self.bases}, "mean_cv_rms_nm": self.mean_rms_nm,
                 "joints": [{"coulomb": c.coulomb, "terms": [s.term for s in c.steps], "cv_rms_nm": c.rms,
                             "steps": [vars(s) | {"gain_pct": s.gain_pct} for s in c.steps],
@@ -159,14 +182,16 @@ class _Factors:
         m = len(feats)
         nb = base_for(spec, base.reduced).n_base
         self.nb, self.m = nb, m
-        sup = replace(base, extras=(), joint_extras=(tuple(feats),) * 6)
+        t_ref = reference_temperatures(data)
+        sup = replace(base, extras=(), joint_extras=tuple(tuple(joint_feature(f, t_ref, j) for f in feats)
+                                                          for j in range(6)))
         n = len(data)
         edges = np.linspace(0, n, folds + 1).astype(int)
         width = nb + m + 1
         blocks_r = [[np.zeros((0, width)) for _ in range(6)] for _ in range(folds)]
         with one_blas_thread():
             for a, b, blocks in design_chunks(spec, sup, data.q, data.qd, data.qdd, data.segment, data.t,
-                                              chunk=4096):
+                                              chunk=4096, temperature=data.temperature):
                 for f in range(folds):
                     lo, hi = max(a, edges[f]), min(b, edges[f + 1])
                     if lo >= hi:
@@ -340,10 +365,11 @@ def select_friction(spec, data: Prepared, model: ModelConfig | None = None, fold
 
     model = model or ModelConfig(reduced=True)
     bases = base_models(model, dahl_grid)
+    t_ref = reference_temperatures(data)
     results = []
     with Progress("friction selection (Coulomb states)", len(bases)) as progress:
         for label, base in bases:
-            terms = family(base)
+            terms = family(base, t_ref is not None)
             fac = _Factors(spec, base, terms, data, folds)
             with one_blas_thread():
                 sels, joints, mse = _select(fac, terms)
@@ -353,10 +379,12 @@ def select_friction(spec, data: Prepared, model: ModelConfig | None = None, fold
     pick = _coulomb_states(rms, np.stack([r[4] for r in results]))
     states = tuple("tanh" if results[b][1].coulomb == "tanh" else f"dahl@{results[b][1].dahl_rad:g}"
                    for b in pick)
-    chosen = replace(model, coulomb="tanh", dahl_source="velocity", extras=(),
-                     joint_coulomb=states, joint_extras=tuple(tuple(results[b][2][j]) for j, b in enumerate(pick)))
+    chosen = replace(model, coulomb="tanh", dahl_source="velocity", extras=(), joint_coulomb=states,
+                     joint_extras=tuple(tuple(joint_feature(f, t_ref, j) for f in results[b][2][j])
+                                        for j, b in enumerate(pick)))
     # the joints' states come from different runs: the model they make is scored as a whole
     final = cross_validate(spec, data, chosen, "joint", "ols", folds).rms_nm
     joints = tuple(JointChoice(states[j], *results[b][3][j][:2], float(final[j])) for j, b in enumerate(pick))
     return FrictionSelection(chosen, joints, tuple((r[0], rms[k]) for k, r in enumerate(results)),
-                             tuple(t.label for t in family(bases[0][1])), folds)
+                             tuple(t.label for t in family(bases[0][1], t_ref is not None)), folds,
+                             None if t_ref is None else tuple(float(v) for v in t_ref))

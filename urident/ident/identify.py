@@ -139,19 +139,22 @@ def check_compatible(identified: IdentifiedModel, spec, where: str = "parameters
 
 
 def predict(identified: IdentifiedModel, spec, q, qd, qdd, segment=None, t=None,
-            state: dict | None = None) -> np.ndarray:
+            state: dict | None = None, temperature=None) -> np.ndarray:
     """(N, 6) predicted joint torques [N·m] at states (q, q̇, q̈) (N, 6); ``t`` (N,) timestamps for
-    models whose friction state integrates q̇ (``dahl_source='velocity'``); ``state``: see
+    models whose friction state integrates q̇ (``dahl_source='velocity'``); ``temperature`` (N, 6)
+    joint temperatures [°C] for models with temperature terms; ``state``: see
     :func:`urident.ident.design.design_blocks` (streams). Recordings: :mod:`urident.ident.prediction`."""
     check_compatible(identified, spec)
     if state is not None:
-        w = design_matrix(spec, identified.model, q, qd, qdd, segment, t, state)
+        w = design_matrix(spec, identified.model, q, qd, qdd, segment, t, state, temperature)
         return (w @ identified.values).reshape(-1, 6)
     out = np.empty((len(q), 6))
-    for a, b, blocks in design_chunks(spec, identified.model, q, qd, qdd, segment, t):  # bounded memory
+    for a, b, blocks in design_chunks(spec, identified.model, q, qd, qdd, segment, t,  # bounded memory
+                                      temperature=temperature):
         out[a:b] = blocks @ identified.values
     return out
 
 
 def predict_prepared(identified: IdentifiedModel, spec, data: Prepared) -> np.ndarray:
-    return predict(identified, spec, data.q, data.qd, data.qdd, data.segment, data.t)
+    return predict(identified, spec, data.q, data.qd, data.qdd, data.segment, data.t,
+                   temperature=data.temperature)

@@ -144,10 +144,20 @@ def predict_recordings(params: IdentifiedModel, recordings, spec=None, *, payloa
         raise ConfigError("no recording to predict")
     data = concatenate(parts)
     del parts
+    require_temperature(params.model, data)
     tau = predict_prepared(params, spec, data)
     if payload is not None:
         tau = tau + _payload_torque(spec, payload, data.q, data.qd, data.qdd)
     return Prediction(data, tau, params, config, causal, tuple(pieces), payload)
+
+
+def require_temperature(model, data: Prepared) -> None:
+    """ConfigError naming the logs when ``model`` has temperature terms and ``data`` no joint
+    temperatures (a log without them, or with a non-finite one)."""
+    if model.uses_temperature and data.temperature is None:
+        files = ", ".join(dict.fromkeys(p.file for p in data.provenance)) or "the data"
+        raise ConfigError(f"{files}: the model's friction depends on the joint temperature "
+                          "(terms tempvisc/tempcoul), and the log carries no (finite) joint temperature")
 
 
 class StreamPredictor:
@@ -167,9 +177,10 @@ class StreamPredictor:
         self._state: dict = {}
         self._last: tuple | None = None
 
-    def update(self, t, q, qd, current) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def update(self, t, q, qd, current, temperature=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(qdd, tau_measured, tau_predicted), each (n, 6), for samples in strictly increasing
-        time order continuing the previous batch."""
+        time order continuing the previous batch; ``temperature`` (n, 6) °C for models with
+        temperature terms."""
         t = np.asarray(t, dtype=float).reshape(-1)
         q = np.asarray(q, dtype=float).reshape(-1, 6)
         qd = np.asarray(qd, dtype=float).reshape(-1, 6)
@@ -177,14 +188,16 @@ class StreamPredictor:
         qdd = self._acc.update(t, qd)
         if len(t) == 0:
             return qdd, tau, np.zeros((0, 6))
+        temp = None if temperature is None else np.asarray(temperature, dtype=float).reshape(-1, 6)
         if self._last is None:
-            pred = predict(self.params, self.spec, q, qd, qdd, None, t, self._state)
+            pred = predict(self.params, self.spec, q, qd, qdd, None, t, self._state, temp)
         else:
             # the previous batch's last sample first: the friction states continue from it
-            lt, lq, lqd, lqdd = self._last
+            lt, lq, lqd, lqdd, ltemp = self._last
             pred = predict(self.params, self.spec, np.vstack([lq, q]), np.vstack([lqd, qd]),
-                           np.vstack([lqdd, qdd]), None, np.r_[lt, t], self._state)[1:]
-        self._last = (t[-1], q[-1], qd[-1], qdd[-1])
+                           np.vstack([lqdd, qdd]), None, np.r_[lt, t], self._state,
+                           None if temp is None else np.vstack([ltemp, temp]))[1:]
+        self._last = (t[-1], q[-1], qd[-1], qdd[-1], None if temp is None else temp[-1])
         if self.payload is not None:
             pred = pred + _payload_torque(self.spec, self.payload, q, qd, qdd)
         return qdd, tau, pred

@@ -92,7 +92,8 @@ class Provenance:
 class Prepared:
     """Identification-ready data: ``t (N,)``, ``q, qd, qdd, tau (N, 6)`` float64, SI units.
     ``segment (N,)`` numbers the contiguous pieces (one per log) so that concatenated logs are
-    never differentiated or filtered across a seam."""
+    never differentiated or filtered across a seam. ``temperature (N, 6)`` °C: the logged joint
+    temperatures when every log carried finite ones, else None (never filled in)."""
 
     t: np.ndarray
     q: np.ndarray
@@ -102,6 +103,7 @@ class Prepared:
     drive_gains: np.ndarray
     provenance: tuple[Provenance, ...] = ()
     segment: np.ndarray = field(default=None)  # type: ignore[assignment]
+    temperature: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.segment is None:
@@ -116,7 +118,8 @@ class Prepared:
 
     def select(self, index) -> "Prepared":
         return replace(self, t=self.t[index], q=self.q[index], qd=self.qd[index],
-                       qdd=self.qdd[index], tau=self.tau[index], segment=self.segment[index])
+                       qdd=self.qdd[index], tau=self.tau[index], segment=self.segment[index],
+                       temperature=None if self.temperature is None else self.temperature[index])
 
 
 def lowpass_coefficients(cutoff_hz: float, fs: float, prewarp: bool = True) -> tuple[np.ndarray, np.ndarray]:
@@ -295,8 +298,20 @@ def preprocess(recording, spec, config: PreprocessConfig | None = None,
     used = "given torques" if tau is not None else SIGNAL_TEXT[torque_signal(recording, signal)]
     prov = Provenance(source, None if rows is None else tuple(int(r) for r in rows),
                       file_sha256(recording.source), (first, last), used)
+    temperature = _temperature(recording)
     return Prepared(t[sl].copy(), np.asarray(recording.q, float)[sl].copy(), qd[sl].copy(),
-                    qdd[sl].copy(), torque[sl].copy(), gains, (prov,))
+                    qdd[sl].copy(), torque[sl].copy(), gains, (prov,),
+                    temperature=None if temperature is None else temperature[sl].copy())
+
+
+def _temperature(recording) -> np.ndarray | None:
+    """The recording's (N, 6) joint temperatures [°C], or None when it has none or any is not finite
+    (a model with temperature terms then says the log lacks them rather than using a filler)."""
+    temperature = getattr(recording, "temperature", None)
+    if temperature is None:
+        return None
+    temperature = np.asarray(temperature, dtype=float)
+    return temperature if np.all(np.isfinite(temperature)) else None
 
 
 def preprocess_pieces(recording, spec, config: PreprocessConfig | None = None,
@@ -335,5 +350,6 @@ def concatenate(parts: Sequence[Prepared]) -> Prepared:
             raise ConfigError("logs prepared with different drive gains cannot be combined")
     seg = np.concatenate([np.full(len(p), k) for k, p in enumerate(parts)])
     cat = lambda name: np.concatenate([getattr(p, name) for p in parts])  # noqa: E731
+    temperature = None if any(p.temperature is None for p in parts) else cat("temperature")
     return Prepared(cat("t"), cat("q"), cat("qd"), cat("qdd"), cat("tau"), gains,
-                    tuple(pr for p in parts for pr in p.provenance), seg)
+                    tuple(pr for p in parts for pr in p.provenance), seg, temperature)

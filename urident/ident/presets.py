@@ -1,4 +1,6 @@
-"""Named identification configurations: ``paper`` (the paper's method), ``real-robot`` and ``auto``.
+"""Named identification configurations: ``paper`` (the paper's method), ``real-robot`` and ``auto``,
+and the one place a preset meets a caller's explicit options (:func:`resolve_model`: the command
+line's flags and the API's keywords alike) and what it leaves to the data (:func:`choose_on_data`).
 
 ``auto``: the reduced base set, per-joint weighting, a Dahl presliding Coulomb state (driven by
 ∫q̇, δ chosen by blocked CV) and each joint's friction terms chosen by blocked CV on the
@@ -47,6 +49,7 @@ CV (``resolve_preset``, or ``urident identify --dahl-rad auto``): 2e-4 rad on th
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Mapping
 
 from urident.errors import ConfigError
 from urident.ident.crossval import CVScore, select_dahl_rad
@@ -89,35 +92,114 @@ PRESETS = {
 }
 
 
+#: Other names of presets (``--model best`` is the ``real-robot`` preset).
+PRESET_ALIASES = {"best": "real-robot"}
+#: What a caller may set over a preset: ModelConfig fields, the weighting, and whether δ is
+#: chosen by CV (``dahl_rad='auto'`` or ``select_dahl_rad=True``).
+OVERRIDES = ("reduced", "friction_eps", "coulomb", "hold_velocity", "dahl_rad", "dahl_source", "extras",
+             "stribeck_vs", "weighting", "select_dahl_rad")
+#: What ``auto`` chooses itself from the data (setting it too is a conflict), in the order reported.
+AUTO_CHOSEN = ("coulomb", "hold_velocity", "dahl_rad", "dahl_source", "extras", "stribeck_vs", "weighting",
+               "select_dahl_rad")
+
+
+@dataclass(frozen=True)
+class ModelChoice:
+    """A preset with a caller's explicit options applied, before any data are seen: the model and
+    weighting to fit, and whether δ (``select_dahl_rad``) or each joint's friction terms
+    (``select_friction``) are then chosen by blocked CV on the identification data."""
+
+    preset: str | None       # the canonical preset name (aliases resolved), None without one
+    model: ModelConfig
+    weighting: str
+    select_dahl_rad: bool = False
+    select_friction: bool = False
+
+
+def resolve_model(preset: str | None = None, overrides: Mapping[str, object] | None = None, *,
+                  model: ModelConfig | None = None, names: Mapping[str, str] | None = None) -> ModelChoice:
+    """The model of ``preset`` (or the paper's defaults) with ``overrides`` applied: keys of
+    :data:`OVERRIDES`, None meaning not given. ``model``: a whole ModelConfig instead of the
+    preset's (the overrides still apply). ``names``: how the caller spells each key and
+    ``preset`` in its error messages (the command line's flags); default the keys themselves.
+    ConfigError when an override conflicts with ``auto`` or asks for δ selection without a Dahl
+    state."""
+    given = {k: v for k, v in dict(overrides or {}).items() if v is not None}
+    unknown = sorted(set(given) - set(OVERRIDES))
+    if unknown:
+        raise ConfigError(f"model option {unknown[0]!r} unknown (known: {', '.join(OVERRIDES)})")
+    say = lambda key: dict(names or {}).get(key, key)  # noqa: E731
+    name = PRESET_ALIASES.get(preset, preset) if preset else None
+    p = get_preset(name) if name else None
+    if p is not None and p.select_friction:
+        clash = [k for k in AUTO_CHOSEN if k in given]
+        if clash:
+            raise ConfigError(f"{say(clash[0])} conflicts with {say('preset')} {name}, which chooses the friction "
+                              "terms and weighting itself from the identification logs")
+    base = model if model is not None else (p.model if p else ModelConfig())
+    weighting = given.pop("weighting", None) or (p.weighting if p else "none")
+    select = bool(p and p.select_dahl_rad)
+    asked = None                 # the override that asked for δ selection, if one did
+    dahl = given.pop("dahl_rad", None)
+    if isinstance(dahl, str) and dahl == "auto":
+        select, asked = True, "dahl_rad"
+    elif dahl is not None:
+        given["dahl_rad"], select = dahl, False
+    if "select_dahl_rad" in given:
+        select = bool(given.pop("select_dahl_rad"))
+        asked = "select_dahl_rad" if select else None
+    chosen = replace(base, **given)
+    if select and not (chosen.coulomb == "dahl" or "dahl" in chosen.extras):
+        if asked:
+            raise ConfigError(f"{say(asked)}{' auto' if asked == 'dahl_rad' else ''} needs a Dahl state: "
+                              f"{say('coulomb')} dahl or {say('extras')} dahl")
+        select = False   # the preset's δ selection is moot once the Dahl state is overridden
+    return ModelChoice(name, chosen, weighting, select, bool(p and p.select_friction))
+
+
 @dataclass(frozen=True)
 class PresetChoice:
     """A preset resolved on identification data: the model, the weighting and the CV scores of
     the δ grid (empty when δ was not selected)."""
 
-    preset: str
+    preset: str | None
     model: ModelConfig
     weighting: str
     cv_scores: tuple[CVScore, ...] = ()
     selection: FrictionSelection | None = None   # the per-joint choice (preset auto)
+    folds: int = CV_FOLDS
+
+    def text(self) -> str:
+        """What was chosen on the data, for the report ('' when nothing was)."""
+        if self.selection is not None:
+            return self.selection.text()
+        if not self.cv_scores:
+            return ""
+        return (f"dahl_rad selected by {self.folds}-fold blocked CV on the identification data: "
+                f"{self.model.dahl_rad:g} rad (mean held-out RMS [N·m] per distance: "
+                + ", ".join(f"{s.model.dahl_rad:g}: {s.mean_rms_nm:.3f}" for s in self.cv_scores) + ")")
 
 
 def get_preset(name: str) -> Preset:
     try:
-        return PRESETS[name]
+        return PRESETS[PRESET_ALIASES.get(name, name)]
     except KeyError:
         raise ConfigError(f"preset {name!r} unknown (known: {', '.join(PRESETS)})") from None
 
 
+def choose_on_data(spec, data: Prepared, choice: ModelChoice, folds: int = CV_FOLDS) -> PresetChoice:
+    """What ``choice`` leaves to the identification data, chosen by blocked CV on ``data``: each
+    joint's friction terms (``auto``) or δ from :data:`DAHL_GRID`; else ``choice`` as it is."""
+    if choice.select_friction:
+        sel = select_friction(spec, data, choice.model, folds)
+        return PresetChoice(choice.preset, sel.model, choice.weighting, (), sel, folds)
+    if choice.select_dahl_rad:
+        model, scores = select_dahl_rad(spec, data, choice.model, DAHL_GRID, choice.weighting, "ols", folds)
+        return PresetChoice(choice.preset, model, choice.weighting, tuple(scores), None, folds)
+    return PresetChoice(choice.preset, choice.model, choice.weighting, (), None, folds)
+
+
 def resolve_preset(spec, data: Prepared, name: str, folds: int = CV_FOLDS) -> PresetChoice:
-    """The preset's model and weighting, with δ selected by blocked CV on ``data`` if the preset
-    asks for it (identification data only)."""
-    p = get_preset(name)
-    model = p.model
-    scores: tuple[CVScore, ...] = ()
-    if p.select_friction:
-        sel = select_friction(spec, data, model, folds)
-        return PresetChoice(p.name, sel.model, p.weighting, (), sel)
-    if p.select_dahl_rad:
-        model, s = select_dahl_rad(spec, data, model, DAHL_GRID, p.weighting, "ols", folds)
-        scores = tuple(s)
-    return PresetChoice(p.name, replace(model), p.weighting, scores)
+    """The preset's model and weighting, with δ or the friction terms selected by blocked CV on
+    ``data`` if the preset asks for it (identification data only)."""
+    return choose_on_data(spec, data, resolve_model(name), folds)

@@ -172,7 +172,7 @@ def reduce_blocks(spec, model, data, edges, targets=None, chunk: int | None = No
     with Progress("identification: regressor (samples)", len(data)) as progress:
         if design is None:
             design = design_chunks(spec, model, data.q, data.qd, data.qdd, data.segment, data.t,
-                                   chunk or CHUNK_SAMPLES)
+                                   chunk or CHUNK_SAMPLES, getattr(data, "temperature", None))
         for a, b, blocks in design:
             for i, acc in enumerate(accs):
                 lo, hi = max(a, edges[i]), min(b, edges[i + 1])

@@ -64,7 +64,8 @@ def friction_torque(identified, spec, data: Prepared) -> np.ndarray:
     mask = is_friction(identified.kinds)
     values = np.where(mask, np.asarray(identified.values, dtype=float), 0.0)
     out = np.empty((len(data), 6))
-    for a, b, blocks in design_chunks(spec, identified.model, data.q, data.qd, data.qdd, data.segment, data.t):
+    for a, b, blocks in design_chunks(spec, identified.model, data.q, data.qd, data.qdd, data.segment, data.t,
+                                      temperature=data.temperature):
         out[a:b] = blocks @ values
     return out
 
@@ -174,7 +175,8 @@ def fit_sessions(spec, data: Prepared, model, weighting: str = "joint", folds: i
         return out
 
     accs = [Accumulator() for _ in range(folds)]
-    for a, b, blocks in design_chunks(spec, model, data.q, data.qd, data.qdd, data.segment, data.t):
+    for a, b, blocks in design_chunks(spec, model, data.q, data.qd, data.qdd, data.segment, data.t,
+                                      temperature=data.temperature):
         full = np.concatenate([blocks, nuisance(a, b)], axis=2)
         for k in range(folds):
             rows = np.flatnonzero(fold[a:b] == k)

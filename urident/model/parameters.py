@@ -55,6 +55,8 @@ EXTRA_COLUMNS = {
     "quadvisc": ("fvq", "quadratic_viscous"),
     "poscos": ("fpc", "position_friction"),
     "possin": ("fps", "position_friction"),
+    "tempvisc": ("fvt", "temperature_viscous"),
+    "tempcoul": ("fct", "temperature_coulomb"),
 }
 #: Kinds of the columns that are friction (or a constant offset): everything but the link-side
 #: rigid body and the rotor inertia.

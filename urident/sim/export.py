@@ -96,7 +96,7 @@ def export_identified(params, spec, out: str | Path, fmt: str, *, label: str, na
     if valid_recordings:
         data = predict_recordings(params, list(valid_recordings), spec, payload=payload).data
     header = [f"exported by urident from {label} (robot {spec.name}, method {params.method}, "
-              f"Coulomb model {params.model.coulomb}, tanh eps {params.model.friction_eps:g} rad/s)"]
+              f"Coulomb model {params.model.coulomb_text()}, tanh eps {params.model.friction_eps:g} rad/s)"]
     header += _payload_note(payload, payload_label)
     if data is not None:
         header.append("shares: RMS of the term's torque / RMS of the measured torque on " + ", ".join(valid_labels))

@@ -34,6 +34,8 @@ DESCRIPTIONS = {
     "sigmoid_offset": "sigmoid offset tanh(qd/eps)^2 (direction-dependent friction)",
     "quadratic_viscous": "quadratic viscous friction qd*|qd|",
     "position_friction": "position-dependent Coulomb friction z*cos/sin(k*q)",
+    "temperature_viscous": "temperature-dependent viscous friction qd*(T-T_ref)",
+    "temperature_coulomb": "temperature-dependent Coulomb friction z*(T-T_ref)",
     "coulomb_state": "Coulomb friction state ({model}) beyond tanh(qd/eps)",
 }
 
@@ -73,7 +75,8 @@ def inexpressible_terms(params, spec, fmt: str, data=None) -> list[Term]:
     if data is not None:
         from urident.ident.design import design_blocks
 
-        blocks = design_blocks(spec, params.model, data.q, data.qd, data.qdd, data.segment, data.t)
+        blocks = design_blocks(spec, params.model, data.q, data.qd, data.qdd, data.segment, data.t,
+                               temperature=data.temperature)
         contributions = blocks * values          # (N, 6, n) torque of each column
         tau_rms = np.sqrt(np.mean(data.tau ** 2, axis=0))
         tau_rms[tau_rms == 0] = np.inf
@@ -104,6 +107,5 @@ def inexpressible_terms(params, spec, fmt: str, data=None) -> list[Term]:
                 j = int(np.argmax(np.any(blocks[:, :, c] != 0, axis=0)))
                 kept[:, j] += values[c] * np.tanh(data.qd[:, j] / params.model.friction_eps)
             torque = contributions[:, :, mask].sum(axis=2) - kept
-        state = ", ".join(params.model.joint_coulomb) if params.model.joint_coulomb else params.model.coulomb
-        add("coulomb_state", DESCRIPTIONS["coulomb_state"].format(model=state), mask, torque)
+        add("coulomb_state", DESCRIPTIONS["coulomb_state"].format(model=params.model.coulomb_text()), mask, torque)
     return terms

@@ -282,6 +282,11 @@ class LiveStreamer:
         from urident.ident.prediction import as_parameters
 
         params = as_parameters(spec, params)  # errors (bad parameter vector) reach the caller
+        if params.model.uses_temperature:   # the streamed samples carry no joint temperature
+            from urident.errors import ConfigError
+
+            raise ConfigError("the live view cannot predict a model with joint-temperature friction terms "
+                              "(tempvisc/tempcoul): view the log afterwards (urident view LOG --params ...)")
         config = dict(spec=spec, params=params, sink=sink, app_id=app_id, prefix=prefix,
                       pose_rate_hz=pose_rate_hz, window_s=window_s)
         if backend == "thread":
