@@ -10,7 +10,7 @@ command line starts fast::
 from urident.version import __version__
 
 _API = ("Identification", "Validation", "check_trajectory", "diagnose_gap", "identify", "load_log",
-        "validate")
+        "validate", "design_excitation")
 __all__ = ["__version__", *_API]
 
 

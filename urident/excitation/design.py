@@ -98,6 +98,11 @@ class ExcitationDesign:
     def cond(self) -> float:
         return float(self.criteria.cond_theta)
 
+    def __repr__(self) -> str:  # the arrays would fill a notebook's cell
+        return (f"ExcitationDesign(robot={self.robot!r}, L={self.settings.harmonics}, "
+                f"duration_s={self.trajectory.duration:g}, cond={self.cond:.4g}, converged={self.converged}, "
+                f"check_ok={self.check.ok})")
+
     @property
     def tool(self) -> ToolCapsule | None:
         return self.spec.tool
