@@ -408,16 +408,15 @@ def design_excitation(robot, *, harmonics: int = 5, duration_s: float | None = N
     if payload is not None:
         load = _payload(payload, _spec(robot))
         source = f"payload {payload}" if isinstance(payload, (str, Path)) else "payload"
-    say = None
-    if progress:
+
+    def say(message: str) -> None:
         import sys
 
-        def say(message: str) -> None:
-            print(f"design_excitation: {message}", file=sys.stderr, flush=True)
+        print(f"design_excitation: {message}", file=sys.stderr, flush=True)
 
     return design(robot, harmonics=harmonics, duration_s=duration_s, seed=seed, reduced=reduced,
                   budget_s=budget_s, for_payload=for_payload, payload=load, tool=tool, payload_source=source,
-                  progress=say, **options)
+                  progress=say if progress else None, **options)
 
 
 __all__ += ["design_excitation"]
