@@ -57,15 +57,18 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robot", default="ur5", help="robot name or robot file (default ur5)")
     parser.add_argument("--seed", type=int, default=1)
-    parser.add_argument("--models", default="reduced,full", help="reduced, full or both (default)")
+    parser.add_argument("--models", default="reduced,full", help="reduced, full, or both (reduced,full; the default)")
     parser.add_argument("--random", type=int, default=1000, help="random feasible trajectories (0: none)")
     parser.add_argument("--no-long", action="store_true", help="skip the long reference run")
     args = parser.parse_args()
 
+    models = ["reduced", "full"] if args.models == "both" else args.models.split(",")
+    if not models or any(m not in ("reduced", "full") for m in models):
+        parser.error(f"--models must be reduced, full, reduced,full or both, not {args.models!r}")
     spec = load_robot(args.robot)
     out = {"robot": spec.name, "seed": args.seed, "cores": os.cpu_count()}
-    for model in args.models.split(","):
-        reduced = {"reduced": True, "full": False}[model]
+    for model in models:
+        reduced = model == "reduced"
         base = base_parameters(spec, reduced=reduced)
         settings = ExcitationSettings(harmonics=5, duration_s=20.0, reduced=reduced, seed=args.seed)
         entry = {"n_base": base.n_base, "default": run(spec, settings, base, f"{model} default")}

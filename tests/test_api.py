@@ -122,6 +122,7 @@ def test_check_trajectory_reports_what_the_command_checks(capsys):
     ("gap_diagnosis.py", "baseline e_N"),
     ("payload.py", "set_target_payload("),
     ("mujoco_model.py", "corrected model, measured by MuJoCo"),
+    ("design_excitation.py", "check-trajectory ok: True"),
 ])
 def test_examples_run(script, expect):
     """Each example as a user runs it, from the repository root."""
@@ -142,3 +143,51 @@ def test_the_readmes_python_runs_as_written():
         r = subprocess.run([sys.executable, "-c", block], cwd=REPO, capture_output=True, text=True,
                            timeout=600)
         assert r.returncode == 0, block + r.stderr
+
+
+def test_design_excitation_is_what_the_command_writes(tmp_path, capsys):
+    """One short search through the API and through `urident excite`: the same file (but the
+    times), and the API's errors name its arguments where the command names its flags."""
+    from urident.errors import OutputError
+    from urident.excitation.design import HarmonicRateError, ToolSizeError
+    from urident.excitation.files import load_trajectory
+
+    small = dict(harmonics=2, duration_s=6.0, reduced=True, seed=4, starts=1, iterations=3)
+    design = ur.design_excitation("ur5", **small)
+    assert design.check.ok and design.convergence.reason == "iterations" and not design.converged
+    assert design.cond == design.criteria.cond_theta and design.trajectory.a.shape == (6, 2)
+    written = design.save(tmp_path / "api.yaml")
+    assert main(["excite", "--robot", "ur5", "--out", str(tmp_path / "cli.yaml"), "--harmonics", "2",
+                 "--duration", "6", "--reduced", "--seed", "4", "--starts", "1", "--iterations", "3",
+                 "--quiet"]) == 0
+    assert f"{design.cond:.4g}" in capsys.readouterr().out
+    timed = ("wall_s", "cpu_s")
+    api, cli = (load_trajectory(p) for p in (written, tmp_path / "cli.yaml"))
+    assert np.array_equal(api.trajectory.a, cli.trajectory.a) and api.criteria == cli.criteria
+    assert {k: v for k, v in api.optimization.items() if k not in timed} == \
+        {k: v for k, v in cli.optimization.items() if k not in timed}
+    document = json.loads(design.to_json())
+    assert document["robot"] == "ur5" and document["check"]["ok"] is True
+    assert document["trajectory"]["a_rad_s"] == cli.trajectory.a.tolist()
+    with pytest.raises(OutputError, match="exists"):  # an existing file is not replaced without overwrite
+        design.save(written)
+    with pytest.raises(HarmonicRateError, match=r"^harmonics 100 with periods 1 over duration 4: .*12.5 Hz") as e:
+        ur.design_excitation("ur5", harmonics=100, duration_s=4.0)
+    assert e.value.exit_code == 2 and e.value.top_hz == 25.0
+    with pytest.raises(ToolSizeError, match="tool capsule"):
+        ur.design_excitation("ur5", for_payload=True)
+    with pytest.raises(ConfigError, match="excitation settings: .*velocity_fraction"):
+        ur.design_excitation("ur5", margins={"velocity_fraction": 1.5})
+
+
+def test_the_excite_help_states_the_librarys_payload_defaults():
+    """The command's help carries --for-payload's defaults as literals (its parser is built without
+    numpy); they are the library's."""
+    from urident.cli import cmd_excite
+    from urident.excitation import design
+
+    for name in ("PAYLOAD_PERIODS", "PAYLOAD_DURATION_S", "PAYLOAD_VELOCITY_FRACTION"):
+        assert getattr(cmd_excite, name) == getattr(design, name)
+    r = subprocess.run([sys.executable, "-m", "urident", "excite", "--help"], capture_output=True, text=True,
+                       cwd=REPO, check=True)
+    assert f"within {design.payload_velocity_cap():.2f} rad/s" in " ".join(r.stdout.split())

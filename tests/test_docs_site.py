@@ -30,7 +30,12 @@ API_OBJECTS = ("urident.logs.load_log", "urident.logs.Recording", "urident.ident
                "urident.ident.identify.identify", "urident.ident.identify_all", "urident.ident.predict_recordings",
                "urident.ident.validate.validate", "urident.ident.load_params", "urident.ident.save_params",
                "urident.gap.diagnose.diagnose", "urident.gap.GapResult", "urident.excitation.check_trajectory",
-               "urident.excitation.load_trajectory", "urident.model.load_robot", "urident.model.RobotSpec")
+               "urident.excitation.load_trajectory", "urident.model.load_robot", "urident.model.RobotSpec",
+               "urident.api.design_excitation", "urident.excitation.design.ExcitationDesign",
+               "urident.api.identify_payload", "urident.ident.payload_fit.PayloadIdentification",
+               "urident.api.calibrate_drive_gains", "urident.ident.gains_fit.DriveGainCalibration",
+               "urident.api.run_trajectory", "urident.api.diagnose_sim", "urident.api.export_model",
+               "urident.model.payload.Payload")
 
 pytest.importorskip("mkdocs", reason="the docs site needs the dev extra (mkdocs, mkdocs-material, mkdocstrings-python)")
 

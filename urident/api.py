@@ -29,8 +29,9 @@ from urident.errors import ConfigError
 from urident.logs import Recording, load_log
 
 METHODS = ("ols", "bounded", "consistent")
-__all__ = ["Identification", "Validation", "calibrate_drive_gains", "check_trajectory", "diagnose_gap",
-           "identify", "identify_payload", "load_log", "run_trajectory", "validate"]
+__all__ = ["Identification", "Validation", "calibrate_drive_gains", "check_trajectory",
+           "design_excitation", "diagnose_gap", "diagnose_sim", "export_model", "identify",
+           "identify_payload", "load_log", "run_trajectory", "validate"]
 
 
 def _spec(robot):
@@ -493,9 +494,6 @@ def diagnose_sim(model, valid_logs, robot, *, model_label: str | None = None, jo
                               joint_map=joint_map)
 
 
-__all__ += ["diagnose_sim"]
-
-
 def export_model(params, out: str | Path, *, format: str | None = None, robot=None, name: str | None = None,
                  payload=None, valid_logs=None, log_options: Mapping | None = None, overwrite: bool = False,
                  label: str | None = None, payload_label: str | None = None,
@@ -540,4 +538,51 @@ def export_model(params, out: str | Path, *, format: str | None = None, robot=No
                              valid_recordings=recordings, valid_labels=valid_labels, overwrite=overwrite)
 
 
-__all__ += ["export_model"]
+# --------------------------------------------------------------------------- excitation design
+from typing import TYPE_CHECKING  # noqa: E402
+
+if TYPE_CHECKING:  # loaded on the call: the optimiser brings scipy.optimize and the worker pool
+    from urident.excitation.design import ExcitationDesign
+
+
+def design_excitation(robot, *, harmonics: int = 5, duration_s: float | None = None, seed: int = 0,
+                      reduced: bool = False, budget_s: float | None = None, for_payload: bool = False,
+                      payload=None, tool=None, progress: bool = False, **options) -> ExcitationDesign:
+    """Optimise an excitation trajectory (the paper's eq. 25-26, what ``urident excite`` does): a
+    Fourier series of order ``harmonics`` over ``duration_s`` seconds (default 20; 30 with
+    ``for_payload``), at rest at both ends, minimising cond(Λ) of the base regressor (``reduced``:
+    the paper's 33 base parameters instead of 52) within the joint, velocity, acceleration, torque
+    and collision limits, then checked densely at the controller rate. ``seed`` makes it
+    reproducible; ``budget_s`` caps the search's wall time (the result says how far from converged
+    it stopped).
+
+    ``robot``: a name, a robot file or a :class:`urident.model.RobotSpec`. ``payload``: a load the
+    torque checks include (a payload file or :class:`urident.ident.payload.Payload`; a file's capsule
+    is the tool's size); ``tool``: the tool's :class:`urident.model.robot.ToolCapsule` for the
+    collision checks; ``for_payload``: design for the payload's ten parameters instead (needs the
+    tool's size). ``options``: ``periods``, ``criterion`` (``cond`` or ``logdet``), ``q0``,
+    ``starts``, ``iterations``, ``margins`` (a mapping of :class:`urident.excitation.Margins`
+    fields) as in :func:`urident.excitation.design.design`. The starts run in spawned processes:
+    a script calling this needs the ``if __name__ == "__main__":`` guard.
+
+    Returns an :class:`urident.excitation.design.ExcitationDesign`: ``trajectory``, ``cond``
+    (cond(Θ̄_B) at the controller rate), ``convergence``, ``check`` (the dense check's report),
+    ``save(path)`` (the trajectory file ``urident run`` and ``check-trajectory`` read; its text is
+    read back and checked before it is written), ``to_dict()``/``to_json()`` (that file's document)."""
+    from urident.excitation.design import design
+
+    load, source = None, "payload"
+    if payload is not None:
+        load = _payload(payload, _spec(robot))
+        source = f"payload {payload}" if isinstance(payload, (str, Path)) else "payload"
+
+    def say(message: str) -> None:
+        import sys
+
+        print(f"design_excitation: {message}", file=sys.stderr, flush=True)
+
+    return design(robot, harmonics=harmonics, duration_s=duration_s, seed=seed, reduced=reduced,
+                  budget_s=budget_s, for_payload=for_payload, payload=load, tool=tool, payload_source=source,
+                  progress=say if progress else None, **options)
+
+

@@ -217,12 +217,18 @@ def available_robots() -> list[str]:
     return sorted(p.stem for p in ROBOTS_DIR.glob("*.yaml"))
 
 
+def robot_path(name_or_path: str | Path) -> Path | None:
+    """The robot file ``name_or_path`` names when it is a path (ends in .yaml/.yml or holds a
+    "/"), None when it is a robot's name."""
+    text = str(name_or_path)
+    return Path(text) if text.endswith((".yaml", ".yml")) or "/" in text else None
+
+
 def load_robot(name_or_path: str | Path) -> RobotSpec:
     """Load a robot by name (``ur5e``, …: :func:`available_robots`) or from a YAML file path."""
     text = str(name_or_path)
-    if text.endswith((".yaml", ".yml")) or "/" in text:
-        path = Path(text)  # missing, a directory, unreadable: load_yaml names the file
-    else:
+    path = robot_path(text)  # missing, a directory, unreadable: load_yaml names the file
+    if path is None:
         path = ROBOTS_DIR / f"{text.lower()}.yaml"
         if not path.is_file():
             raise UnknownRobotError(
