@@ -49,6 +49,18 @@ def joints_at_rest(qd) -> list[int]:
     return [int(j) for j in np.flatnonzero(share >= AT_REST_SHARE)]
 
 
+def unit_gain_variants(fam: list, scorer) -> list:
+    """``fam`` without the lag and exact-shift variants whose training coefficient is far from 1
+    (:func:`urident.gap.significance.unit_gain`): such a fit uses the form as a stand-in for
+    dτ̂/dt (a 2 ms lag scaled ×14 mimics an 8 ms delay), not as the effect."""
+    from urident.gap.significance import UNIT_GAIN, unit_gain
+
+    def ok(c):
+        b = scorer.training_beta(c) if unit_gain(c) and c.mode == "ident" else None
+        return b is None or UNIT_GAIN[0] <= float(b[0]) <= UNIT_GAIN[1]
+    return [c for c in fam if ok(c)]
+
+
 def claims(findings, final_r, ctx_v, config: GapConfig) -> list:
     """Each finding as a ``cause`` when its form fits, else ``partial`` with what its form leaves
     along its own axis (:func:`urident.gap.structure.form_left`) after all the findings."""
@@ -118,7 +130,8 @@ def _diagnose_prepared(spec, ident: GapSet, valid: GapSet, params, config: GapCo
         fams = [f for f in fams if (f[0].joint not in rest if f[0].joint is not None else len(rest) < 6)]
         where["at_rest"] = {"joints": [j + 1 for j in rest], "reason": AT_REST_REASON}
     scorer.prepare_gains(fams)
-    pool = [max(f, key=scorer.training_gain) if len(f) > 1 else f[0] for f in fams]
+    fams = [unit_gain_variants(f, scorer) for f in fams]
+    pool = [max(f, key=scorer.training_gain) if len(f) > 1 else f[0] for f in fams if f]
     scorer.prepare(pool)
 
     findings, steps, confounds, current = select(scorer, pool, block, config, ctx_v, spec)

@@ -49,11 +49,22 @@ class CurrentDelay(Effect):
         return out
 
 
-def first_order_lag(t: np.ndarray, x: np.ndarray, tau: np.ndarray) -> np.ndarray:
-    """``x`` (N, 6) through 1/(τs + 1) per column along the times ``t`` (N,), exact for a signal
-    held between samples; the output starts at the first sample (at rest before it)."""
-    y = np.array(x, dtype=float)
-    a = np.exp(-np.diff(np.asarray(t, float))[:, None] / np.maximum(tau, 1e-12))
+def first_order_lag(t: np.ndarray, x: np.ndarray, tau) -> np.ndarray:
+    """``x`` (N,) or (N, k) through 1/(τs + 1) along the times ``t`` (N,), exact for a signal held
+    between samples (``tau`` a scalar or one per column); the output starts at the first sample
+    (at rest before it)."""
+    x = np.asarray(x, dtype=float)
+    dt = np.diff(np.asarray(t, float))
+    tau = np.maximum(np.asarray(tau, float), 1e-12)
+    if len(x) < 2:
+        return x.copy()
+    if np.ptp(dt) <= 1e-9 * abs(dt[0]) and tau.ndim == 0:   # a constant period: one IIR filter
+        from scipy.signal import lfilter
+
+        a = float(np.exp(-dt[0] / tau))
+        return lfilter([1.0 - a], [1.0, -a], x, axis=0, zi=a * x[:1])[0]   # y[-1] = x[0]
+    y = x.copy()
+    a = np.exp(-dt.reshape((-1,) + (1,) * (x.ndim - 1)) / tau)
     for k in range(1, len(y)):
         y[k] = a[k - 1] * y[k - 1] + (1.0 - a[k - 1]) * y[k]
     return y
