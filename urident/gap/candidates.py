@@ -139,7 +139,9 @@ class Candidate:
         elif e == "asymmetric_coulomb":
             out.update(coulomb_difference_nm=float(2 * b[0]))
         elif e == "current_lag":
-            out.update(time_constant_s=self.settings["tau_s"], lag_gain=float(b[0]))
+            # g·(lag_T − 1) ≈ −g·T·s on slow motion: the lag it amounts to; T the grid's form
+            out.update(time_constant_s=float(b[0] * self.settings["tau_s"]), form_time_constant_s=self.settings["tau_s"],
+                       lag_gain=float(b[0]))
         elif e == "thermal_drift":
             out.update(drift_variable=self.variant, viscous_change_nm_s_per_unit=float(b[0]),
                        coulomb_change_nm_per_unit=float(b[1]))
@@ -148,7 +150,8 @@ class Candidate:
                        amplitude_nm=float(np.hypot(b[0], b[1])),
                        phase_rad=float(np.arctan2(b[1], b[0])))
         elif e == "current_delay" and "delay_s" in self.settings:
-            out.update(delay_s=self.settings["delay_s"], delay_gain=float(b[0]))
+            out.update(delay_s=float(b[0] * self.settings["delay_s"]), form_delay_s=self.settings["delay_s"],
+                       delay_gain=float(b[0]))    # g·shift_d ≈ −g·d·s on slow motion
         elif e == "current_delay":
             out.update(delay_s=float(-b[0]))
         elif e == "torque_constant_error":
