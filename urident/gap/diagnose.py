@@ -29,6 +29,7 @@ from urident.gap.residual import baseline_design, fit_baseline, make_context
 from urident.gap.results import GapResult, e_n, rms
 from urident.gap.scoring import Scorer
 from urident.gap.selection import select
+from urident.gap.significance import unit_gain_variants
 from urident.gap.where import describe_unexplained, describe_where
 from urident.ident.reduced import one_blas_thread
 
@@ -47,18 +48,6 @@ def joints_at_rest(qd) -> list[int]:
     :data:`AT_REST_SHARE` of the samples ``qd`` (N, 6)."""
     share = np.mean(np.abs(np.asarray(qd, float)) < AT_REST_RAD_S, axis=0)
     return [int(j) for j in np.flatnonzero(share >= AT_REST_SHARE)]
-
-
-def unit_gain_variants(fam: list, scorer) -> list:
-    """``fam`` without the lag and exact-shift variants whose training coefficient is far from 1
-    (:func:`urident.gap.significance.unit_gain`): such a fit uses the form as a stand-in for
-    dτ̂/dt (a 2 ms lag scaled ×14 mimics an 8 ms delay), not as the effect."""
-    from urident.gap.significance import UNIT_GAIN, unit_gain
-
-    def ok(c):
-        b = scorer.training_beta(c) if unit_gain(c) and c.mode == "ident" else None
-        return b is None or UNIT_GAIN[0] <= float(b[0]) <= UNIT_GAIN[1]
-    return [c for c in fam if ok(c)]
 
 
 def claims(findings, final_r, ctx_v, config: GapConfig) -> list:

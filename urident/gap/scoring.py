@@ -212,6 +212,7 @@ class Scorer:
             gram += x.T @ x
             xty += x.T @ y[:, j]
         beta = lstsq_gram(gram, xty)
+        self._betas[c] = beta
         return float(2.0 * beta @ xty - beta @ gram @ beta)
 
     def training_gain(self, c: Candidate) -> float:
@@ -231,7 +232,7 @@ class Scorer:
         return self._gains[c]
 
     def training_beta(self, c: Candidate) -> np.ndarray | None:
-        """The coefficients behind :meth:`training_gain` (identification mode), else None."""
+        """The coefficients behind :meth:`training_gain`."""
         self.training_gain(c)
         return self._betas.get(c)
 

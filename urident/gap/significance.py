@@ -148,6 +148,16 @@ def unit_gain(c: Candidate) -> bool:
     return c.effect == "current_lag" or (c.effect == "current_delay" and "delay_s" in c.settings)
 
 
+def unit_gain_variants(fam: list, scorer) -> list:
+    """``fam`` without the lag and exact-shift variants whose training coefficient
+    (``scorer.training_beta``) is outside :data:`UNIT_GAIN`: such a fit uses the form as a
+    stand-in for dτ̂/dt (a 2 ms lag scaled ×14 mimics an 8 ms delay), not as the effect."""
+    def ok(c):
+        b = scorer.training_beta(c) if unit_gain(c) else None
+        return b is None or UNIT_GAIN[0] <= float(b[0]) <= UNIT_GAIN[1]
+    return [c for c in fam if ok(c)]
+
+
 def plausible(c: Candidate, beta: np.ndarray) -> bool:
     """Sign and size constraints of the catalogue's physics on the fitted coefficients:
     Stribeck adds friction near zero velocity, load friction grows with load, drag grows with
