@@ -34,8 +34,9 @@ neighbour_load_friction  |τ̂_link,k|·s, k = j ± 1: a bearing carrying a neig
 asymmetric_coulomb       |s|: a Coulomb level that differs by direction (coefficient ΔF/2), an offset
                          that acts only while the joint moves
 current_lag              lag_T(τ̂_j) − τ̂_j, lag_T the first-order filter 1/(Ts + 1) (T on a grid;
-                         coefficient 1 for that lag): offered on a joint only when its residual's
-                         sensor noise is coloured as a lag colours it (a delay keeps it white)
+                         coefficient 1 for that lag); in one family with current_delay's variants
+                         (the identification fit chooses a delay or a lag, as it chooses a
+                         Stribeck velocity: held-out gains barely tell them apart)
 presliding               z_j − s, z the normalised Dahl state driven by the integrated velocity
                          (presliding distance δ on a grid): holding friction that keeps the sign
                          and size of the motion before a stop, where tanh(q̇/ε) falls to 0
@@ -400,6 +401,8 @@ def families(spec, ident: SetContext, valid: SetContext, effects=EFFECTS, ripple
                     fam += [position_ripple(j, k, "friction", mode) for k in ks_f]
                 elif e == "current_delay":
                     fam = [current_delay(j, mode)] + [current_delay(j, mode, d) for d in DELAYS_S]
+                    if "current_lag" in effects:      # one family: the measurement's dynamics
+                        fam += [current_lag(j, tau, mode) for tau in LAG_TAUS_S]
                 elif e == "quadratic_viscous":
                     fam = [quadratic_viscous(j, mode)]
                 elif e == "neighbour_load_friction":
@@ -407,7 +410,7 @@ def families(spec, ident: SetContext, valid: SetContext, effects=EFFECTS, ripple
                 elif e == "asymmetric_coulomb":
                     fam = [asymmetric_coulomb(j, mode)]
                 elif e == "current_lag":
-                    fam = [current_lag(j, tau, mode) for tau in LAG_TAUS_S]
+                    fam = [] if "current_delay" in effects else [current_lag(j, tau, mode) for tau in LAG_TAUS_S]
                 elif e == "torque_constant_error":
                     fam = [torque_constant_error(j, mode)]
                 elif e == "current_offset":
