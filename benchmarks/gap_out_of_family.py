@@ -33,9 +33,9 @@ FORMS = ("quadratic_viscous", "asymmetric_coulomb", "lugre", "position_friction"
          "current_lag", "cogging_2x", "neighbour_load")
 #: Catalogue explanations counted as the closest one for each form (besides "beyond the
 #: catalogue" on the right joint, or a finding there reported as a partial explanation).
-ACCEPT = {"quadratic_viscous": ("quadratic_viscous",), "asymmetric_coulomb": ("current_offset",),
+ACCEPT = {"quadratic_viscous": ("quadratic_viscous",), "asymmetric_coulomb": ("current_offset", "asymmetric_coulomb"),
           "lugre": ("stribeck", "presliding"), "position_friction": ("position_ripple",),
-          "cold_start": ("thermal_drift",), "current_lag": ("current_delay",),
+          "cold_start": ("thermal_drift",), "current_lag": ("current_delay", "current_lag"),
           "cogging_2x": ("position_ripple",), "neighbour_load": ("load_friction", "neighbour_load_friction")}
 V0 = 0.005            # [rad/s] smooth sign of the forms
 GEAR = 101

@@ -65,7 +65,7 @@ def test_catalogue_names_are_the_public_interface():
     assert EFFECT_NAMES == ("stribeck", "load_friction", "thermal_drift", "position_ripple",
                             "current_delay", "torque_constant_error", "current_offset",
                             "payload_error", "joint_elasticity", "quadratic_viscous",
-                            "neighbour_load_friction")
+                            "neighbour_load_friction", "asymmetric_coulomb", "current_lag")
     for entry in catalogue():
         assert entry.summary and "\n" not in entry.summary
         assert entry.params
@@ -242,6 +242,37 @@ def test_current_delay_shifts_by_d(spec):
     np.testing.assert_allclose(out[1:, 4], 0.5 * (current[1:, 4] + current[:-1, 4]), atol=1e-12)
 
 
+def test_current_lag_is_a_first_order_filter_not_a_delay(spec):
+    t = np.arange(400) * DT
+    step = np.zeros((400, 6))
+    step[100:] = 1.0
+    tc = 5 * DT
+    es = load_effects(parse_effects_text(effects_text(f"{{name: current_lag, joints: [3], time_constant_s: {tc}}}")))
+    out = es.offline_measure_current(t, step, step, step, step)
+    np.testing.assert_array_equal(np.delete(out, 2, axis=1), np.delete(step, 2, axis=1))
+    k = np.arange(100, 400)
+    np.testing.assert_allclose(out[k, 2], 1 - np.exp(-(t[k] - t[99]) / tc), atol=1e-12)
+    assert out[99, 2] == 0 and 0 < out[100, 2] < 0.25   # it moves at once (a delay would hold 0)
+    noise = np.random.default_rng(0).normal(size=(20000, 6))
+    lagged = es.offline_measure_current(np.arange(20000) * DT, noise, noise, noise, noise)[:, 2]
+    a = np.exp(-1 / 5)                         # the sensor noise comes out coloured, AR(1) with a
+    assert np.corrcoef(lagged[1:], lagged[:-1])[0, 1] == pytest.approx(a, abs=0.02)
+
+
+def test_asymmetric_coulomb_differs_by_direction_and_not_at_rest(spec):
+    t, q, qd, qdd, tau, temps = run_arrays(spec)
+    es = load_effects(parse_effects_text(effects_text(
+        "{name: asymmetric_coulomb, joints: [2], coulomb_difference_nm: 1.2}")), spec=spec)
+    qd = np.zeros_like(qd)
+    qd[:, 1] = np.linspace(-1, 1, len(qd))
+    qd[100, 1] = 0.0
+    extra = es.offline_extra_torque(t, q, qd, qdd, tau, temps)
+    only_joint(extra, 1)
+    friction = es.context.coulomb[1] * es.context.sign(qd[:, 1]) + extra[:, 1]
+    assert friction[-1] - (-friction[0]) == pytest.approx(1.2, rel=1e-6)   # forwards − backwards level
+    assert extra[100, 1] == 0                                               # nothing at rest
+
+
 def test_torque_constant_error_scales_and_offset_adds(spec):
     t, q, qd, qdd, tau, temps = run_arrays(spec)
     current = tau / spec.drive_gains
@@ -325,6 +356,8 @@ ALL_EFFECTS = effects_text(
     "{name: current_offset, offset_a: [0.1, -0.1, 0.05, 0, 0.02, -0.03]}",
     "{name: quadratic_viscous, joints: [2, 5], coefficient_nm_s2: 3.0}",
     "{name: neighbour_load_friction, joints: [1, 2], coefficient: 0.03, neighbour: [2, 3]}",
+    "{name: asymmetric_coulomb, joints: [3, 4], coulomb_difference_nm: [1.5, -0.4]}",
+    "{name: current_lag, joints: [2, 6], time_constant_s: [0.006, 0.002]}",
 )
 
 
@@ -334,7 +367,7 @@ def test_hook_form_equals_offline_form(spec, name):
     text = effects_text(*[line.strip()[2:] for line in ALL_EFFECTS.splitlines()[1:]
                           if f"name: {name}," in line or line.strip().endswith(f"name: {name}}}")])
     es = load_effects(parse_effects_text(text), spec=spec)
-    assert es.names == (name,) and len(config.entries) == 13
+    assert es.names == (name,) and len(config.entries) == 15
     t, q, qd, qdd, tau, temps = run_arrays(spec, n=250, seed=3)
     current = tau / spec.drive_gains
     offline_torque = es.offline_extra_torque(t, q, qd, qdd, tau, temps)

@@ -66,6 +66,24 @@ def test_events_cover_each_push_and_nothing_on_a_smooth_residual():
     assert find_events(r, t, np.zeros_like(r), FS) == []
 
 
+def test_an_event_ends_with_its_push_when_the_push_leaves_a_new_hold_level():
+    """A held joint's friction keeps the pose a push leaves: the residual settles ~10 N·m off its
+    earlier level. The event ends where the residual settles (the level is taken without the
+    flagged samples), within a few samples of the push, and two pushes stay two events."""
+    rng = np.random.default_rng(3)
+    t = np.arange(3000) / FS
+    r = rng.normal(0, 0.3, (3000, 6)) + 2.0 * np.sin(0.7 * t)[:, None]
+    pushes = [(5.0, 6.5, 60.0), (7.0, 8.2, 60.0), (18.0, 19.0, -40.0)]
+    level = np.zeros(3000)
+    for a, b, h in pushes:
+        r[:, 1] += h * np.clip((t - a) / 0.3, 0, 1) * np.clip((b - t) / 0.2, 0, 1)
+        level[t >= b] = -10.0 * np.sign(h)
+    ev = find_events(r + level[:, None] * (np.arange(6) == 1), t, np.zeros_like(r), FS)
+    assert len(ev) == 3
+    for e, (a, b, _) in zip(ev, pushes):
+        assert abs(e.t_start_s - a) <= 0.05 and abs(e.t_end_s - b) <= 0.05, (e.t_start_s, e.t_end_s)
+
+
 def test_without_events_splits_the_segments():
     from test_gap_diagnose import simulate, sines
     from urident.gap.data import build_set
@@ -175,6 +193,25 @@ def test_friction_growing_faster_than_linearly_is_named_not_stribeck():
     first = res.findings[0]
     assert (first.effect, first.joint, first.claim) == ("quadratic_viscous", 2, "cause"), format_report(res)
     assert first.magnitude["coefficient_nm_s2"] == pytest.approx(6.0, rel=0.15)
+
+
+@pytest.mark.parametrize("effect, form", [
+    ("{name: asymmetric_coulomb, joints: [2], coulomb_difference_nm: 3.0}", ("asymmetric_coulomb", "coulomb_difference_nm", 3.0)),
+    ("{name: current_lag, joints: [2], time_constant_s: 0.008}", ("current_lag", "time_constant_s", 0.008)),
+    ("{name: current_delay, joints: [2], delay_s: 0.008}", ("current_delay", "delay_s", 0.008)),
+])
+def test_asymmetric_coulomb_and_a_lag_are_named_and_a_delay_stays_a_delay(effect, form):
+    from test_gap_diagnose import FAST, simulate, sines
+    from urident.gap import diagnose, format_report
+    from urident.model import load_robot
+
+    spec = load_robot("ur10e")
+    eff = f"effects:\n  - {effect}\n"
+    res = diagnose([simulate(spec, sines(3, vmax=1.0), eff, seed=5)],
+                   [simulate(spec, sines(4, vmax=1.0), eff, seed=6)], spec, config=FAST)
+    first = res.findings[0]
+    assert (first.effect, first.joint) == (form[0], 2), format_report(res)
+    assert first.magnitude[form[1]] == pytest.approx(form[2], rel=0.2), first.magnitude
 
 
 def test_a_ripple_at_twice_the_gear_ratio_is_a_candidate():

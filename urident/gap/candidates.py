@@ -21,7 +21,9 @@ thermal_drift            x·q̇_j and x·s with x = time since the start of the 
 position_ripple          sin(k·q_j), cos(k·q_j) (mode torque) or the same × s (mode friction), k = 2-4,
                          the peaks of the angle-domain spectrum of the identification residual and
                          its clear peaks up to the samples' angle-Nyquist (urident.gap.structure)
-current_delay            dτ̂_j/dt (coefficient −d)
+current_delay            dτ̂_j/dt (coefficient −d), or the exact shift τ̂_j(t − d) − τ̂_j(t) (d on a
+                         grid, coefficient 1 for that delay): at a velocity reversal's sharp
+                         Coulomb step the shift and the lag differ where the derivative cannot tell
 torque_constant_error    τ̂_j (coefficient 1/gain_factor − 1)
 current_offset           1 (coefficient the offset in N·m)
 payload_error            all joints: the torque of 1 kg at the tool point, and the three first-moment
@@ -29,6 +31,12 @@ payload_error            all joints: the torque of 1 kg at the tool point, and t
 joint_elasticity         d²τ̂_link,j/dt² (coefficient −J/k)
 quadratic_viscous        q̇_j·|q̇_j| (friction growing faster than linearly with speed)
 neighbour_load_friction  |τ̂_link,k|·s, k = j ± 1: a bearing carrying a neighbour's link moment
+asymmetric_coulomb       |s|: a Coulomb level that differs by direction (coefficient ΔF/2), an offset
+                         that acts only while the joint moves
+current_lag              lag_T(τ̂_j) − τ̂_j, lag_T the first-order filter 1/(Ts + 1) (T on a grid;
+                         coefficient 1 for that lag); in one family with current_delay's variants
+                         (the identification fit chooses a delay or a lag, as it chooses a
+                         Stribeck velocity: held-out gains barely tell them apart)
 presliding               z_j − s, z the normalised Dahl state driven by the integrated velocity
                          (presliding distance δ on a grid): holding friction that keeps the sign
                          and size of the motion before a stop, where tanh(q̇/ε) falls to 0
@@ -69,6 +77,10 @@ LOW_HARMONICS = (2, 3, 4)    # position_ripple: always tried (k = 1 is a gravity
 #: presliding: Dahl presliding distances [rad]; the UR10e pair's joints pick 0.1-0.3 mrad
 #: (benchmarks/gap_presliding.py), the grid spans a decade either side.
 PRESLIDING_DELTAS = (1e-4, 3e-4, 1e-3, 3e-3, 1e-2)
+#: current_lag: first-order time constants [s] (a current loop or measurement filter: a few ms)
+LAG_TAUS_S = (0.002, 0.004, 0.007, 0.010, 0.015)
+#: current_delay: delays of the exact-shift variants [s] (one to a few controller periods)
+DELAYS_S = (0.002, 0.004, 0.007, 0.010, 0.015)
 
 
 @dataclass(eq=False)
@@ -125,6 +137,12 @@ class Candidate:
             out.update(coefficient_nm_s2=float(b[0]))
         elif e == "neighbour_load_friction":
             out.update(coefficient=float(b[0]), neighbour_joint=self.settings["neighbour"] + 1)
+        elif e == "asymmetric_coulomb":
+            out.update(coulomb_difference_nm=float(2 * b[0]))
+        elif e == "current_lag":
+            # g·(lag_T − 1) ≈ −g·T·s on slow motion: the lag it amounts to; T the grid's form
+            out.update(time_constant_s=float(b[0] * self.settings["tau_s"]), form_time_constant_s=self.settings["tau_s"],
+                       lag_gain=float(b[0]))
         elif e == "thermal_drift":
             out.update(drift_variable=self.variant, viscous_change_nm_s_per_unit=float(b[0]),
                        coulomb_change_nm_per_unit=float(b[1]))
@@ -132,6 +150,9 @@ class Candidate:
             out.update(harmonic=self.settings["k"], mode=self.settings["ripple_mode"],
                        amplitude_nm=float(np.hypot(b[0], b[1])),
                        phase_rad=float(np.arctan2(b[1], b[0])))
+        elif e == "current_delay" and "delay_s" in self.settings:
+            out.update(delay_s=float(b[0] * self.settings["delay_s"]), form_delay_s=self.settings["delay_s"],
+                       delay_gain=float(b[0]))    # g·shift_d ≈ −g·d·s on slow motion
         elif e == "current_delay":
             out.update(delay_s=float(-b[0]))
         elif e == "torque_constant_error":
@@ -229,8 +250,23 @@ def position_ripple(j: int, k: int, ripple_mode: str, mode: str = "ident") -> Ca
                   {"k": int(k), "ripple_mode": ripple_mode})
 
 
-def current_delay(j: int, mode: str = "ident") -> Candidate:
-    return _joint("current_delay", j, "", mode, ("dtau/dt",), lambda ctx: [ctx.dtau[:, j]])
+def shifted(ctx: SetContext, j: int, d: float) -> np.ndarray:
+    """(N,) τ̂_j(t − d) − τ̂_j(t) per segment (0 where t − d falls before the segment's start)."""
+    from urident.gap.residual import segment_slices
+
+    out = np.zeros(ctx.n)
+    for sl in segment_slices(ctx.data.prepared.segment):
+        ts, th = ctx.t[sl], ctx.tau_hat[sl, j]
+        out[sl] = np.where(ts - d >= ts[0], np.interp(ts - d, ts, th) - th, 0.0)
+    return out
+
+
+def current_delay(j: int, mode: str = "ident", delay_s: float | None = None) -> Candidate:
+    """The delay's first-order column dτ̂/dt, or (``delay_s``) the exact shift by that delay."""
+    if delay_s is None:
+        return _joint("current_delay", j, "", mode, ("dtau/dt",), lambda ctx: [ctx.dtau[:, j]])
+    return _joint("current_delay", j, f"d={1000 * delay_s:g} ms", mode, ("tau_hat(t-d)-tau_hat",),
+                  lambda ctx: [shifted(ctx, j, delay_s)], {"delay_s": float(delay_s)})
 
 
 def quadratic_viscous(j: int, mode: str = "ident") -> Candidate:
@@ -244,6 +280,26 @@ def neighbour_load_friction(j: int, k: int, mode: str = "ident") -> Candidate:
         return [features.load_friction(ctx.tau_link[:, k], ctx.sign()[:, j])]
     return _joint("neighbour_load_friction", j, f"load of joint {k + 1}", mode, ("|tau_link,k|*sign(qd)",),
                   cols, {"neighbour": k})
+
+
+def asymmetric_coulomb(j: int, mode: str = "ident") -> Candidate:
+    return _joint("asymmetric_coulomb", j, "", mode, ("|sign(qd)|",), lambda ctx: [np.abs(ctx.sign()[:, j])])
+
+
+def lagged(ctx: SetContext, j: int, tau_s: float) -> np.ndarray:
+    """(N,) τ̂_j through 1/(τs + 1), per segment (each starts at rest on its first sample)."""
+    from urident.gap.residual import segment_slices
+    from urident.simcontroller.effects.sensor import first_order_lag
+
+    out = np.empty(ctx.n)
+    for sl in segment_slices(ctx.data.segment):
+        out[sl] = first_order_lag(ctx.t[sl], ctx.tau_hat[sl, j], tau_s)
+    return out
+
+
+def current_lag(j: int, tau_s: float, mode: str = "ident") -> Candidate:
+    return _joint("current_lag", j, f"T={1000 * tau_s:g} ms", mode, ("lag_T(tau_hat)-tau_hat",),
+                  lambda ctx: [lagged(ctx, j, tau_s) - ctx.tau_hat[:, j]], {"tau_s": float(tau_s)})
 
 
 def torque_constant_error(j: int, mode: str = "ident") -> Candidate:
@@ -344,11 +400,17 @@ def families(spec, ident: SetContext, valid: SetContext, effects=EFFECTS, ripple
                     fam = [position_ripple(j, k, "torque", mode) for k in ks_t]
                     fam += [position_ripple(j, k, "friction", mode) for k in ks_f]
                 elif e == "current_delay":
-                    fam = [current_delay(j, mode)]
+                    fam = [current_delay(j, mode)] + [current_delay(j, mode, d) for d in DELAYS_S]
+                    if "current_lag" in effects:      # one family: the measurement's dynamics
+                        fam += [current_lag(j, tau, mode) for tau in LAG_TAUS_S]
                 elif e == "quadratic_viscous":
                     fam = [quadratic_viscous(j, mode)]
                 elif e == "neighbour_load_friction":
                     fam = [neighbour_load_friction(j, k, mode) for k in (j - 1, j + 1) if 0 <= k < 6]
+                elif e == "asymmetric_coulomb":
+                    fam = [asymmetric_coulomb(j, mode)]
+                elif e == "current_lag":
+                    fam = [] if "current_delay" in effects else [current_lag(j, tau, mode) for tau in LAG_TAUS_S]
                 elif e == "torque_constant_error":
                     fam = [torque_constant_error(j, mode)]
                 elif e == "current_offset":

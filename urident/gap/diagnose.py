@@ -29,6 +29,7 @@ from urident.gap.residual import baseline_design, fit_baseline, make_context
 from urident.gap.results import GapResult, e_n, rms
 from urident.gap.scoring import Scorer
 from urident.gap.selection import select
+from urident.gap.significance import unit_gain_variants
 from urident.gap.where import describe_unexplained, describe_where
 from urident.ident.reduced import one_blas_thread
 
@@ -118,7 +119,8 @@ def _diagnose_prepared(spec, ident: GapSet, valid: GapSet, params, config: GapCo
         fams = [f for f in fams if (f[0].joint not in rest if f[0].joint is not None else len(rest) < 6)]
         where["at_rest"] = {"joints": [j + 1 for j in rest], "reason": AT_REST_REASON}
     scorer.prepare_gains(fams)
-    pool = [max(f, key=scorer.training_gain) if len(f) > 1 else f[0] for f in fams]
+    fams = [unit_gain_variants(f, scorer) for f in fams]
+    pool = [max(f, key=scorer.training_gain) if len(f) > 1 else f[0] for f in fams if f]
     scorer.prepare(pool)
 
     findings, steps, confounds, current = select(scorer, pool, block, config, ctx_v, spec)

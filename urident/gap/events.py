@@ -71,14 +71,30 @@ class Event:
                 "rms_nm": list(self.rms_nm), "kind": self.kind, "n_samples": self.stop - self.start}
 
 
-def _running_median(x: np.ndarray, width: int, step: int = 1) -> np.ndarray:
+def _running_median(x: np.ndarray, width: int, step: int = 1, exclude: np.ndarray | None = None) -> np.ndarray:
     """(N, 6) running median of ``x`` over ``width`` samples, taken on every ``step``-th sample and
-    interpolated between them (the level of a residual changes over seconds: cost bounded)."""
+    interpolated between them (the level of a residual changes over seconds: cost bounded);
+    ``exclude`` (N, 6): samples left out of each joint's medians (a flagged push must not lift
+    the level its own end is judged against)."""
     from scipy.ndimage import median_filter
 
     step = max(1, int(step))
     sub = x[::step]
-    med = median_filter(sub, size=(max(1, width // step) | 1, 1), mode="mirror")
+    half = max(1, width // step) // 2
+    if exclude is None or not exclude.any():
+        med = median_filter(sub, size=(2 * half + 1, 1), mode="mirror")
+    else:
+        from numpy.lib.stride_tricks import sliding_window_view
+
+        held = np.where(exclude[::step], np.nan, sub)
+        padded = np.pad(held, ((half, half), (0, 0)), mode="reflect")
+        win = sliding_window_view(padded, 2 * half + 1, axis=0)           # (n_sub, 6, w)
+        empty = np.all(np.isnan(win), axis=2)
+        med = np.nanmedian(np.where(empty[..., None], 0.0, win), axis=2)
+        for j in range(x.shape[1]):                  # a window all excluded: the nearest levels
+            bad = empty[:, j]
+            if bad.any() and (~bad).any():
+                med[bad, j] = np.interp(np.flatnonzero(bad), np.flatnonzero(~bad), med[~bad, j])
     if step == 1:
         return med
     at = np.arange(0, len(x), step)
@@ -96,10 +112,11 @@ def departures(r: np.ndarray, fs: float, iterations: int = 3) -> tuple[np.ndarra
     (module doc). The spread is taken again without the stretches flagged so far (``iterations``
     times): pushes covering a third of a run would otherwise widen it."""
     r = np.asarray(r, float)
-    d = r - _running_median(r, int(round(LEVEL_WINDOW_S * fs)), int(fs // LEVEL_RATE_HZ))
+    width, step = int(round(LEVEL_WINDOW_S * fs)), int(fs // LEVEL_RATE_HZ)
     floor = NOISE_FLOOR * noise_sigma(r)
     out = np.zeros(r.shape, bool)
     for _ in range(iterations):
+        d = r - _running_median(r, width, step, out)
         s = np.empty(r.shape[1])
         for j in range(r.shape[1]):
             x = d[~out[:, j], j] if (~out[:, j]).sum() > 0.5 * len(r) else d[:, j]

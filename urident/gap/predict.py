@@ -41,6 +41,9 @@ neighbour_load_friction  the neighbour's link-torque distribution |τ̂_link,k|
 position_ripple          the angles it visits: sin/cos(k·q) (× sign(q̇) for friction ripple)
 current_delay            how fast its torque changes, dτ̂/dt, and the model torque shifted by
                          the delay behind the fit, τ̂(t − d) − τ̂(t): the column's misfit there
+                         (the exact-shift variant: τ̂(t − d) − τ̂(t) itself)
+current_lag              its model torque through the fitted lag, lag_T(τ̂) − τ̂
+asymmetric_coulomb       the time it spends moving: |tanh(q̇/ε)|
 torque_constant_error    its torque τ̂
 current_offset           nothing (a constant)
 payload_error            its gravity and inertial load of the payload (the regressor on its motion)
@@ -56,6 +59,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from urident.gap.candidates import shifted
 from urident.gap.data import GapSet
 from urident.gap.residual import SetContext, make_context
 
@@ -70,17 +74,6 @@ def extrapolated_shrink_pct(remaining_rms, correction_rms, cross=None) -> np.nda
     return np.where(total > 0, 100.0 * (1.0 - u / np.where(total > 0, total, 1.0)), 0.0)
 
 
-def _shifted(ctx: SetContext, j: int, d: float) -> np.ndarray:
-    """(N,) τ̂_j(t − d) − τ̂_j(t) per segment (0 where t − d falls before the segment's start)."""
-    from urident.gap.residual import segment_slices
-
-    out = np.zeros(ctx.n)
-    for sl in segment_slices(ctx.data.prepared.segment):
-        ts, th = ctx.t[sl], ctx.tau_hat[sl, j]
-        out[sl] = np.where(ts - d >= ts[0], np.interp(ts - d, ts, th) - th, 0.0)
-    return out
-
-
 def delay_behind(beta: float, ctx: SetContext, j: int, iterations: int = 4) -> float:
     """The delay d [s] whose exact shift of τ̂_j, fitted on ``ctx`` by the column dτ̂_j/dt, gives
     the fitted coefficient ``beta``: the low-passed column is attenuated at the sharp Coulomb
@@ -91,7 +84,7 @@ def delay_behind(beta: float, ctx: SetContext, j: int, iterations: int = 4) -> f
     if xx <= 0 or d == 0:
         return d
     for _ in range(iterations):
-        k = -float(_shifted(ctx, j, d) @ x) / (d * xx)    # column coefficient per second of delay
+        k = -float(shifted(ctx, j, d) @ x) / (d * xx)    # column coefficient per second of delay
         if not k > 0:
             return -beta
         d = -beta / k
@@ -101,14 +94,15 @@ def delay_behind(beta: float, ctx: SetContext, j: int, iterations: int = 4) -> f
 def delay_form_misfit(fit, ctx: SetContext) -> np.ndarray:
     """(N, 6) what ``fit``'s current_delay columns leave on ``ctx``: the model torque shifted by
     the delay behind them (:func:`delay_behind`), τ̂(t − d) − τ̂(t), minus their correction
-    β·dτ̂/dt (the Coulomb step at a reversal, sharper on faster motion); 0 on other joints."""
+    β·dτ̂/dt (the Coulomb step at a reversal, sharper on faster motion); 0 on other joints and
+    for the exact-shift variants (their column is the shift itself)."""
     out = np.zeros((ctx.n, 6))
     for c, b in fit.coefficients().items():
-        if c.effect != "current_delay":
+        if c.effect != "current_delay" or "delay_s" in c.settings:
             continue
         j, beta = c.joint, float(b[0])
         fitted_on = fit.scorer.ident if c in fit.ident else fit.scorer.valid
-        out[:, j] = _shifted(ctx, j, delay_behind(beta, fitted_on, j)) - beta * ctx.dtau[:, j]
+        out[:, j] = shifted(ctx, j, delay_behind(beta, fitted_on, j)) - beta * ctx.dtau[:, j]
     return out
 
 

@@ -158,6 +158,7 @@ class Scorer:
         self._factors: IdentFactors | None = None   # identification-mode candidates' R factors
         self._stats: _Stats | None = None
         self._gains: dict[Candidate, float] = {}
+        self._betas: dict[Candidate, np.ndarray] = {}   # identification-mode training coefficients
 
     # ------------------------------------------------------------- statistics
     def prepare(self, cands: Sequence[Candidate], block: int | None = None) -> None:
@@ -211,6 +212,7 @@ class Scorer:
             gram += x.T @ x
             xty += x.T @ y[:, j]
         beta = lstsq_gram(gram, xty)
+        self._betas[c] = beta
         return float(2.0 * beta @ xty - beta @ gram @ beta)
 
     def training_gain(self, c: Candidate) -> float:
@@ -223,10 +225,16 @@ class Scorer:
                 st = IdentStats(self.ident, [c], self._factors)
                 beta = lstsq_gram(st.gram, st.fty)
                 gain = float(2.0 * beta @ st.fty - beta @ st.gram @ beta)
+                self._betas[c] = beta
             else:
                 gain = self._cv_gain(c)
             self._gains[c] = float(f"{gain:.12g}")
         return self._gains[c]
+
+    def training_beta(self, c: Candidate) -> np.ndarray | None:
+        """The coefficients behind :meth:`training_gain`."""
+        self.training_gain(c)
+        return self._betas.get(c)
 
     # ------------------------------------------------------------- evaluation
     def evaluate(self, selection: Sequence[Candidate], stats: _Stats | None = None) -> Fit:

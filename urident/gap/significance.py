@@ -138,16 +138,39 @@ def _material(crms: float, sigma_j: float, ratio: float) -> bool:
 MIN_PAYLOAD_KG = 0.1
 
 
+#: The exact forms of a lag or a delay (the filtered or shifted model torque minus itself) have
+#: coefficient 1 when they are the effect; far from it the column only stands in for dτ̂/dt.
+UNIT_GAIN = (0.5, 2.0)
+
+
+def unit_gain(c: Candidate) -> bool:
+    """Whether ``c``'s coefficient should be 1 (:data:`UNIT_GAIN`): a lag, an exact-shift delay."""
+    return c.effect == "current_lag" or (c.effect == "current_delay" and "delay_s" in c.settings)
+
+
+def unit_gain_variants(fam: list, scorer) -> list:
+    """``fam`` without the lag and exact-shift variants whose training coefficient
+    (``scorer.training_beta``) is outside :data:`UNIT_GAIN`: such a fit uses the form as a
+    stand-in for dτ̂/dt (a 2 ms lag scaled ×14 mimics an 8 ms delay), not as the effect."""
+    def ok(c):
+        b = scorer.training_beta(c) if unit_gain(c) else None
+        return b is None or UNIT_GAIN[0] <= float(b[0]) <= UNIT_GAIN[1]
+    return [c for c in fam if ok(c)]
+
+
 def plausible(c: Candidate, beta: np.ndarray) -> bool:
     """Sign and size constraints of the catalogue's physics on the fitted coefficients:
     Stribeck adds friction near zero velocity, load friction grows with load, drag grows with
     speed, presliding
     friction holds (same sign as the motion before the stop), a delay is
-    positive, an elastic joint has positive J/k, a payload has a mass (|m| >= MIN_PAYLOAD_KG,
+    positive (its exact shift, like a lag, has a gain near 1: :data:`UNIT_GAIN`), an elastic joint has positive J/k, a payload has a mass (|m| >= MIN_PAYLOAD_KG,
     negative: a modelled payload removed) with its centre within 0.5 m of the tool point.
     Other effects may have either sign."""
     b = np.asarray(beta, float)
-    if c.effect in ("stribeck", "load_friction", "presliding", "quadratic_viscous", "neighbour_load_friction"):
+    if unit_gain(c):
+        return bool(UNIT_GAIN[0] <= b[0] <= UNIT_GAIN[1])
+    if c.effect in ("stribeck", "load_friction", "presliding", "quadratic_viscous", "neighbour_load_friction",
+                    "current_lag"):
         return bool(b[0] > 0)
     if c.effect in ("current_delay", "joint_elasticity"):
         return bool(b[0] < 0)

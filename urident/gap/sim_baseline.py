@@ -232,6 +232,7 @@ def diagnose_sim(valid_recordings: Sequence, spec, sim, *, drive_gains=None,
     from urident.gap.results import GapResult, e_n, rms
     from urident.gap.scoring import Scorer
     from urident.gap.selection import select
+    from urident.gap.significance import unit_gain_variants
     from urident.gap.where import describe_where
 
     config = config or GapConfig()
@@ -261,7 +262,8 @@ def diagnose_sim(valid_recordings: Sequence, spec, sim, *, drive_gains=None,
         if fam[0].mode == "cv" and fam[0].key not in seen:
             seen.add(fam[0].key)
             fams.append(fam)
-    pool = [max(f, key=scorer.training_gain) if len(f) > 1 else f[0] for f in fams]
+    fams = [unit_gain_variants(f, scorer) for f in fams]
+    pool = [max(f, key=scorer.training_gain) if len(f) > 1 else f[0] for f in fams if f]
     block = default_block_length(ctx.n, valid.sample_rate * config.block_s)
     r0 = ctx.residual
     baseline = SimBaseline(f"{sim.fmt} model {sim.path.name}", ModelConfig(friction_eps=sim.friction_eps),

@@ -179,7 +179,7 @@ def describe(f: dict) -> str:
 FORM_AXIS = {"stribeck": "velocity", "load_friction": "velocity", "presliding": "velocity",
              "quadratic_viscous": "velocity", "neighbour_load_friction": "velocity",
              "thermal_drift": "time", "torque_constant_error": "torque", "current_delay": "velocity",
-             "current_offset": "velocity"}
+             "current_offset": "velocity", "asymmetric_coulomb": "velocity", "current_lag": "velocity"}
 #: Bins per sign of the velocity axis (quantiles of the moving samples), and of the other axes.
 FORM_BINS = 6
 

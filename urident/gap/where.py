@@ -17,7 +17,8 @@ PREFER_AXIS = {"stribeck": ("velocity",), "load_friction": ("load",), "quadratic
                "neighbour_load_friction": ("velocity",), "thermal_drift": ("time",),
                "position_ripple": ("angle",), "current_offset": ("velocity", "angle"),
                "torque_constant_error": ("load",), "payload_error": ("angle",),
-               "current_delay": (), "joint_elasticity": ()}
+               "current_delay": (), "joint_elasticity": (), "asymmetric_coulomb": ("velocity",),
+               "current_lag": ()}
 
 
 def signed_load(ctx: SetContext) -> np.ndarray:

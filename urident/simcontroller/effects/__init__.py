@@ -10,7 +10,11 @@ Each effect has a stable snake_case name (the gap diagnosis reports these names)
 * ``torque_constant_error``: the true drive gain differs from the robot file's;
 * ``current_offset``: constant offset of the measured current;
 * ``payload_error``: an unmodelled point mass at the tool;
-* ``joint_elasticity``: finite joint stiffness (link lags motor, filtered spring torque).
+* ``joint_elasticity``: finite joint stiffness (link lags motor, filtered spring torque);
+* ``quadratic_viscous``: friction growing with the square of the speed;
+* ``neighbour_load_friction``: bearing friction driven by a neighbour joint's load;
+* ``asymmetric_coulomb``: a Coulomb level that differs by direction;
+* ``current_lag``: the reported current through a first-order lag 1/(τs + 1).
 
 An effects file (YAML, see :mod:`.config`) enables effects per joint with their magnitudes;
 :func:`load_effects` turns a file or a preset name (``realistic``) into an :class:`EffectSet`

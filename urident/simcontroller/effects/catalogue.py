@@ -7,10 +7,10 @@ from dataclasses import dataclass
 
 from urident.simcontroller.effects.base import Effect
 from urident.simcontroller.effects.dynamics import JointElasticity, PayloadError
-from urident.simcontroller.effects.friction import (LoadFriction, NeighbourLoadFriction, PositionRipple,
-                                                     QuadraticViscous, Stribeck, ThermalDrift)
+from urident.simcontroller.effects.friction import (AsymmetricCoulomb, LoadFriction, NeighbourLoadFriction,
+                                                     PositionRipple, QuadraticViscous, Stribeck, ThermalDrift)
 from urident.simcontroller.effects.params import Param
-from urident.simcontroller.effects.sensor import CurrentDelay, CurrentOffset, TorqueConstantError
+from urident.simcontroller.effects.sensor import CurrentDelay, CurrentLag, CurrentOffset, TorqueConstantError
 
 #: Effect classes in catalogue (listing) order.
 EFFECT_CLASSES: tuple[type[Effect], ...] = (
@@ -25,17 +25,20 @@ EFFECT_CLASSES: tuple[type[Effect], ...] = (
     JointElasticity,
     QuadraticViscous,
     NeighbourLoadFriction,
+    AsymmetricCoulomb,
+    CurrentLag,
 )
 EFFECTS: dict[str, type[Effect]] = {cls.name: cls for cls in EFFECT_CLASSES}
 EFFECT_NAMES: tuple[str, ...] = tuple(EFFECTS)
 
 #: Order in which an effect set applies its effects: the link-side payload first (the gear and
 #: the spring carry it), then friction, the joint spring last among torques; on the current, the
-#: delay, the gain and the offset (the offset is added to the reported value).
+#: delay, the lag (both act on the drive's current with its noise), the gain and the offset (the
+#: offset is added to the reported value).
 APPLY_ORDER: tuple[str, ...] = (
     "payload_error", "stribeck", "load_friction", "thermal_drift", "quadratic_viscous", "neighbour_load_friction",
-    "position_ripple",
-    "joint_elasticity", "current_delay", "torque_constant_error", "current_offset",
+    "asymmetric_coulomb", "position_ripple",
+    "joint_elasticity", "current_delay", "current_lag", "torque_constant_error", "current_offset",
 )
 
 

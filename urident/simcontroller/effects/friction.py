@@ -1,6 +1,7 @@
 """Friction effects the paper's model (viscous + Coulomb) does not have: Stribeck/static
 friction, load-dependent friction, temperature drift, position-dependent ripple, friction growing
-faster than linearly with speed, friction driven by a neighbour's load."""
+faster than linearly with speed, friction driven by a neighbour's load, a Coulomb level that differs
+by direction."""
 
 from __future__ import annotations
 
@@ -183,3 +184,21 @@ class NeighbourLoadFriction(Effect):
         ctx = self.context
         load = ctx.link_torque(tau_model, qd, qdd) + link_extra
         return self._mu * np.abs(load[..., self._k]) * ctx.sign(qd)
+
+
+class AsymmetricCoulomb(Effect):
+    name = "asymmetric_coulomb"
+    summary = "Coulomb friction that differs by direction: (ΔF/2)·|tanh(q̇/ε)|"
+    details = ("The Coulomb level is f_c + ΔF/2 moving forwards and f_c − ΔF/2 backwards (f_c the "
+               "model's): τ = (ΔF/2)·|tanh(q̇/ε)|, an offset independent of the direction that acts "
+               "only while the joint moves (seals and preloads are direction-dependent).")
+    params = (
+        Param("coulomb_difference_nm", "joint", 0.5,
+              "ΔF, the forward minus the backward Coulomb level [N·m]", low=-1000.0, high=1000.0),
+    )
+
+    def reset(self) -> None:
+        self._half = 0.5 * self.value("coulomb_difference_nm")
+
+    def _stateless_torque(self, t, q, qd, qdd, tau_model, temperatures, link_extra):
+        return self._half * np.abs(self.context.sign(qd))

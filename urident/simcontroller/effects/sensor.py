@@ -1,4 +1,4 @@
-"""Current-measurement effects: delay, drive-gain (torque constant) error, offset."""
+"""Current-measurement effects: delay, first-order lag, drive-gain (torque constant) error, offset."""
 
 from __future__ import annotations
 
@@ -47,6 +47,59 @@ class CurrentDelay(Effect):
         for j in self.joints:
             out[:, j] = np.interp(t - self._delay[j], t, current[:, j])
         return out
+
+
+def first_order_lag(t: np.ndarray, x: np.ndarray, tau) -> np.ndarray:
+    """``x`` (N,) or (N, k) through 1/(τs + 1) along the times ``t`` (N,), exact for a signal held
+    between samples (``tau`` a scalar or one per column); the output starts at the first sample
+    (at rest before it)."""
+    x = np.asarray(x, dtype=float)
+    dt = np.diff(np.asarray(t, float))
+    tau = np.maximum(np.asarray(tau, float), 1e-12)
+    if len(x) < 2:
+        return x.copy()
+    if np.ptp(dt) <= 1e-9 * abs(dt[0]) and tau.ndim == 0:   # a constant period: one IIR filter
+        from scipy.signal import lfilter
+
+        a = float(np.exp(-dt[0] / tau))
+        return lfilter([1.0 - a], [1.0, -a], x, axis=0, zi=a * x[:1])[0]   # y[-1] = x[0]
+    y = x.copy()
+    a = np.exp(-dt.reshape((-1,) + (1,) * (x.ndim - 1)) / tau)
+    for k in range(1, len(y)):
+        y[k] = a[k - 1] * y[k - 1] + (1.0 - a[k - 1]) * y[k]
+    return y
+
+
+class CurrentLag(Effect):
+    name = "current_lag"
+    summary = "first-order current lag: the reported current is the current through 1/(τs + 1)"
+    details = ("i_reported = i / (τ·s + 1), a current-loop or measurement filter: unlike a pure delay it "
+               "attenuates as it lags (phase −atan(ωτ), gain 1/√(1 + ω²τ²)), the sensor noise too. "
+               "Stateful: keeps the last reported value.")
+    params = (Param("time_constant_s", "joint", 0.005, "time constant τ [s]", low=0.0, high=1.0),)
+    hook = "current"
+    stateful = True
+    needs_robot = False
+
+    def reset(self) -> None:
+        self._tau = self.value("time_constant_s")
+        self._t: float | None = None
+        self._y: np.ndarray | None = None
+
+    def current(self, t, current, q, qd, temperatures):
+        t = float(t)
+        current = np.asarray(current, dtype=float)
+        if self._y is None:
+            self._y = current.copy()
+        else:
+            a = np.exp(-(t - self._t) / np.maximum(self._tau, 1e-12))
+            self._y = a * self._y + (1.0 - a) * current
+        self._t = t
+        return np.where(self.mask, self._y, current)
+
+    def offline_current(self, t, current, q, qd, temperatures):
+        current = np.asarray(current, dtype=float)
+        return np.where(self.mask, first_order_lag(t, current, self._tau), current)
 
 
 class TorqueConstantError(Effect):
