@@ -238,7 +238,8 @@ class ValidStats:
         i = np.flatnonzero(np.any(u != 0, axis=0))
         sub = self.m[:, :, i[:, None], i[None, :]]
         ui = u[:, i]
-        return np.einsum("sd,sjde,se->sj", ui, sub, ui)
+        # a sum of squares through Gram matrices: rounding can leave it a hair below zero
+        return np.maximum(np.einsum("sd,sjde,se->sj", ui, sub, ui), 0.0)
 
     def cross(self, u: np.ndarray, v: np.ndarray) -> float:
         """Σ over all samples and joints of (X·u)·(X·v)."""
