@@ -30,15 +30,6 @@ def _shrink(before: np.ndarray, after: np.ndarray) -> np.ndarray:
     return 100.0 * (1 - after / np.where(before > 0, before, np.inf))
 
 
-def json_default(x):
-    """numpy scalars and arrays for ``json.dumps``."""
-    if isinstance(x, np.generic):
-        return x.item()
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    raise TypeError(f"not JSON serialisable: {type(x).__name__}")
-
-
 @dataclass(frozen=True)
 class SimFinding:
     """A finding of the diagnosis as the simulator model takes it: ``final_magnitude`` the value of
@@ -138,7 +129,7 @@ class SimGapReport:
 
     def to_json(self, indent: int | None = 1) -> str:
         """The JSON text ``--json-out`` writes: no NaN, None or infinity (an absent quantity says why)."""
-        from urident.gap.results import json_safe
+        from urident.gap.results import json_default, json_safe
 
         return json.dumps(json_safe(self.to_dict()), indent=indent, allow_nan=False, default=json_default)
 
