@@ -112,8 +112,27 @@ def test_check_trajectory_reports_what_the_command_checks(capsys):
     report = ur.check_trajectory(path)
     assert report.ok and not report.violations
     assert main(["check-trajectory", str(path)]) == 0
+    capsys.readouterr()
+    assert main(["check-trajectory", str(path), "--json"]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert {k: printed[k] for k in json.loads(report.to_json())} == json.loads(report.to_json())
     with pytest.raises(ConfigError, match="a trajectory for robot 'ur5', not 'ur3'"):
         ur.check_trajectory(path, robot="ur3")
+
+
+def test_a_run_result_reads_as_plain_values(tmp_path):
+    """What ``ur.run_trajectory`` returns, as a notebook would store it."""
+    from urident.session import RunResult
+    from urident.session.preflight import ApproachPlan
+    from urident.session.rtde_io import ControllerInfo
+
+    result = RunResult("aborted", tmp_path / "run.csv", 1234, "by the operator", 3,
+                       ControllerInfo((5, 21, 0), "5.21.0", 500.0, "UR5e", None),
+                       ApproachPlan(np.zeros(6), np.ones(6), 1.0, 2, 0.12), {"p99": 0.0021}, 0.05)
+    doc = json.loads(result.to_json())
+    assert doc["status"] == "aborted" and doc["n_samples"] == 1234 and doc["log_path"] == str(tmp_path / "run.csv")
+    assert doc["controller"]["rate_hz"] == 500.0 and doc["approach"]["joint"] == 3
+    assert json.loads(RunResult("checked").to_json())["controller"] is None
 
 
 @pytest.mark.parametrize("script, expect", [

@@ -390,7 +390,8 @@ def run_trajectory(trajectory, host: str, out, robot=None, *, config=None, repea
     (approach, monitors, rest); ``check_only``: run the checks, connect, move nothing.
     ``assume_yes`` starts without asking; otherwise ``confirm(question) -> bool`` is asked (none:
     refused). ``live``: a :class:`urident.viz.LiveStreamer` fed by the control loop, or a path to
-    save the live view to (``.rrd``). Returns a :class:`urident.session.RunResult`; raises
+    save the live view to (``.rrd``). Returns a :class:`urident.session.RunResult` (``to_dict()``,
+    ``to_json()``); raises
     :class:`urident.errors.SafetyError` before any motion, :class:`urident.errors.SessionAborted` after it
     started."""
     from urident.session import ExperimentConfig, RunRequest, load_experiment_config, run_session

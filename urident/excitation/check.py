@@ -115,6 +115,15 @@ class CheckReport:
         raise SafetyError(f"{source}: unsafe trajectory: {first.message()}{more}", path=source,
                           violations=tuple(self.violations))
 
+    def to_dict(self) -> dict[str, Any]:
+        """The summary ``urident check-trajectory --json`` prints (with the file's details)."""
+        return self.as_dict()
+
+    def to_json(self, indent: int | None = 2) -> str:
+        import json
+
+        return json.dumps(self.as_dict(), indent=indent)
+
     def as_dict(self) -> dict[str, Any]:
         """JSON-friendly summary."""
         return {

@@ -65,6 +65,27 @@ class RunResult:
     period_error_s: dict[str, float] = field(default_factory=dict)
     max_tracking_error_rad: float = 0.0
 
+    def to_dict(self) -> dict:
+        """The session's outcome as plain values (SI units; the controller and approach when known)."""
+        info = self.info
+        approach = self.approach
+        return {"status": self.status, "log_path": None if self.log_path is None else str(self.log_path),
+                "n_samples": int(self.n_samples), "abort_reason": self.abort_reason,
+                "late_cycles": int(self.late_cycles), "max_tracking_error_rad": float(self.max_tracking_error_rad),
+                "period_error_s": {k: float(v) for k, v in self.period_error_s.items()},
+                "controller": None if info is None else {
+                    "version": info.version_text, "rate_hz": info.rate_hz, "robot_model": info.robot_model,
+                    "serial_number": info.serial_number},
+                "approach": None if approach is None else {
+                    "max_joint_distance_rad": float(approach.max_joint_distance_rad),
+                    "joint": int(approach.joint) + 1,
+                    "min_margin_m": None if approach.min_margin_m is None else float(approach.min_margin_m)}}
+
+    def to_json(self, indent: int | None = 2) -> str:
+        import json
+
+        return json.dumps(self.to_dict(), indent=indent)
+
 
 @dataclass(frozen=True)
 class PlannedMotion:
