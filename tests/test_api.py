@@ -120,6 +120,24 @@ def test_check_trajectory_reports_what_the_command_checks(capsys):
         ur.check_trajectory(path, robot="ur3")
 
 
+def test_a_run_loads_the_robot_the_caller_named(tmp_path):
+    """A robot file outside urident's set reaches the session process as its path, not its name
+    (the session loads it again; by name it would be unknown)."""
+    import shutil
+
+    from urident.api import _run_robot
+    from urident.model import load_robot
+
+    mine = tmp_path / "lab_arm.yaml"
+    shutil.copy(load_robot("ur5e").source, mine)
+    trajectory = REPO / "experiments" / "ur5e_ident.yaml"
+    assert _run_robot(str(mine), trajectory)[1] == str(mine)
+    assert load_robot(_run_robot(load_robot(mine), trajectory)[1]).name == load_robot(mine).name
+    assert _run_robot("ur5e", trajectory)[1] == "ur5e"
+    spec, ref = _run_robot(None, trajectory)
+    assert spec.name == "ur5e" and load_robot(ref).name == "ur5e"
+
+
 def test_a_run_result_reads_as_plain_values(tmp_path):
     """What ``ur.run_trajectory`` returns, as a notebook would store it."""
     from urident.session import RunResult

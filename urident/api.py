@@ -320,15 +320,12 @@ def validate(params, logs, robot=None, *, payload=None, drive_gains=None,
 
 # --------------------------------------------------------------------------- payloads, drive gains
 def _named(logs, robot: str, options: Mapping | None) -> list[tuple[str, Recording]]:
-    """(name, Recording) per log: a path's name is the path, a Recording's its source file."""
-    if isinstance(logs, (str, Path, Recording)):
-        logs = [logs]
-    named = []
-    for k, log in enumerate(logs):
-        rec = log if isinstance(log, Recording) else load_log(log, robot=robot, **dict(options or {}))
-        source = log if not isinstance(log, Recording) else (log.source or f"<recording {k + 1}>")
-        named.append((str(source), rec))
-    return named
+    """(name, Recording) per log, loaded in order: a path's name is the path, a Recording's its
+    source file."""
+    items = [logs] if isinstance(logs, (str, Path, Recording)) else list(logs)
+    recordings = _recordings(items, robot, **dict(options or {}))
+    return [(str(log.source or f"<recording {k + 1}>") if isinstance(log, Recording) else str(log), rec)
+            for k, (log, rec) in enumerate(zip(items, recordings))]
 
 
 def identify_payload(logs, params, robot=None, *, unloaded=None, mass_range=None, drive_gains=None,
@@ -370,8 +367,7 @@ def calibrate_drive_gains(without, with_, robot, payload, *, reduced: bool = Fal
     from urident.logs.recording import with_signal
 
     spec = _spec(robot)
-    options = {**dict(log_options or {}), "signal": "current"}
-    runs = [[(name, with_signal(rec, "current", name)) for name, rec in _named(logs, spec.name, options)]
+    runs = [[(name, with_signal(rec, "current", name)) for name, rec in _named(logs, spec.name, log_options)]
             for logs in (without, with_)]
     return calibrate_gains(spec, runs[0], runs[1], _payload(payload, spec), reduced=reduced)
 
@@ -396,22 +392,33 @@ def run_trajectory(trajectory, host: str, out, robot=None, *, config=None, repea
     started."""
     from urident.session import ExperimentConfig, RunRequest, load_experiment_config, run_session
 
-    robot = _spec(robot).name if robot is not None else None
-    if robot is None:
-        from urident.excitation import load_trajectory
-
-        robot = load_trajectory(trajectory).spec.name
+    spec, robot_ref = _run_robot(robot, trajectory)
     if not isinstance(config, ExperimentConfig):
         config = load_experiment_config(config)
     if isinstance(live, (str, Path)):
         from urident.viz import LiveStreamer
 
-        live = LiveStreamer(_spec(robot), None, save=live)
-    request = RunRequest(robot=robot, host=host, trajectory=Path(trajectory), out=Path(out), config=config,
+        live = LiveStreamer(spec, None, save=live)
+    request = RunRequest(robot=robot_ref, host=host, trajectory=Path(trajectory), out=Path(out), config=config,
                          repeat=repeat, check_only=check_only, assume_yes=assume_yes,
-                         record_periods=record_periods, payload=_payload(payload, _spec(robot))
-                         if payload is not None else None)
+                         record_periods=record_periods,
+                         payload=_payload(payload, spec) if payload is not None else None)
     return run_session(request, say=say, confirm=confirm, live=live)
+
+
+def _run_robot(robot, trajectory):
+    """(RobotSpec, what the session loads it from): a name or robot file as given (a file outside
+    urident's robots loads again in the session process), else the trajectory file's robot."""
+    from urident.model import RobotSpec
+
+    if robot is None:
+        from urident.excitation import load_trajectory
+
+        spec = load_trajectory(trajectory).spec
+        return spec, str(spec.source)
+    if isinstance(robot, RobotSpec):
+        return robot, str(robot.source)
+    return _spec(robot), str(robot)
 
 
 # --------------------------------------------------------------------------- gap, trajectories
@@ -483,11 +490,9 @@ def diagnose_sim(model, valid_logs, robot, *, model_label: str | None = None, jo
     spec = _spec(robot)
     joint_map = dict(joint_map) if joint_map else None
     sim = model if isinstance(model, SimModel) else load_sim_model(model, spec, joint_map=joint_map)
-    if valid_labels is None:
-        items = [valid_logs] if isinstance(valid_logs, (str, Path, Recording)) else list(valid_logs)
-        valid_labels = [str(v.source) if isinstance(v, Recording) else str(v) for v in items]
-        valid_logs = items
-    valid = list(_recordings(valid_logs, spec.name, **dict(log_options or {})))
+    named = _named(valid_logs, spec.name, log_options)
+    valid = [rec for _, rec in named]
+    valid_labels = list(valid_labels) if valid_labels is not None else [name for name, _ in named]
     return diagnose_sim_model(sim, valid, spec, model_label=model_label if model_label is not None else
                               (str(model) if not isinstance(model, SimModel) else None),
                               drive_gains=drive_gains, config=replace(GapConfig(max_effects=SIM_MAX_EFFECTS), **config),
@@ -529,11 +534,9 @@ def export_model(params, out: str | Path, *, format: str | None = None, robot=No
         label = label or f"<{getattr(params, 'method', 'parameters')}>"
     spec = _spec(robot or params.robot)
     load = _payload(payload, spec) if payload is not None else None
-    items = [] if valid_logs is None else (
-        [valid_logs] if isinstance(valid_logs, (str, Path, Recording)) else list(valid_logs))
-    if valid_labels is None:
-        valid_labels = [str(v.source) if isinstance(v, Recording) else str(v) for v in items]
-    recordings = list(_recordings(items, spec.name, **dict(log_options or {})))
+    named = [] if valid_logs is None else _named(valid_logs, spec.name, log_options)
+    recordings = [rec for _, rec in named]
+    valid_labels = list(valid_labels) if valid_labels is not None else [name for name, _ in named]
     return export_identified(params, spec, out, fmt, label=label, name=name, payload=load,
                              payload_label=payload_label or (str(payload) if payload is not None else None),
                              valid_recordings=recordings, valid_labels=valid_labels, overwrite=overwrite)
