@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 
+import jsonschema
 import numpy as np
 import pytest
 
@@ -154,7 +155,6 @@ def test_a_pushed_validation_run_reports_the_push_names_nothing_and_its_json_con
     assert doc["events"][0]["kind"] == "external_contact"
     assert doc["events_summary"]["n_samples_set_aside"] == e.stop - e.start
     assert "Events" in format_report(res)
-    jsonschema = pytest.importorskip("jsonschema")
     jsonschema.validate(doc, report_schema())
 
 

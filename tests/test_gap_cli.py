@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import json
 
+import jsonschema
 import numpy as np
 import pytest
 
 from urident.cli.main import main
-from urident.gap.schema import errors
+from urident.gap.schema import errors, report_schema
 from urident.logs import LOG_FIELDS, LogWriter
 
 
@@ -50,6 +51,7 @@ def test_cli_reports_and_writes_json(logs, tmp_path, capsys):
     assert "current_offset on joint 4" in text
     doc = json.loads(out.read_text())
     assert errors(doc) == []                 # the shipped schema: no NaN, None, infinity
+    jsonschema.validate(doc, report_schema())  # and the reference validator agrees
     assert doc["findings"][0]["effect"] == "current_offset" and doc["findings"][0]["joint"] == 4
     assert len(doc["baseline"]["rms_nm"]) == 6 and len(doc["final"]["rms_nm"]) == 6
     assert doc["final"]["rms_nm"][3] < doc["baseline"]["rms_nm"][3]
@@ -98,6 +100,7 @@ def test_check_scores_each_finding_on_held_out_logs(logs, check_logs, tmp_path, 
     assert "Check (held-out logs" in text and "holds" in text and "DOES NOT HOLD" not in text
     doc = json.loads(out.read_text())
     assert errors(doc) == []
+    jsonschema.validate(doc, report_schema())
     row = doc["check"]["findings"][0]
     assert (row["effect"], row["joint"], row["holds"]) == ("current_offset", 4, True)
     lo, hi = row["checked_shrink_ci95_pct"]
