@@ -163,6 +163,9 @@ def test_a_run_result_reads_as_plain_values(tmp_path):
 ])
 def test_examples_run(script, expect):
     """Each example as a user runs it, from the repository root."""
+    from parallel_groups import starts_a_controller
+
+    assert not starts_a_controller(REPO / "examples" / script)  # it runs beside the controller tests
     r = subprocess.run([sys.executable, str(Path("examples") / script)], cwd=REPO, capture_output=True,
                        text=True, timeout=600)
     assert r.returncode == 0, r.stderr

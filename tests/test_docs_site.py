@@ -18,6 +18,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from parallel_groups import STARTS_A_CONTROLLER
 from readme_helpers import file_blocks, run_as_written, runnable, selected
 from shared_data import shared_data_dir
 
@@ -109,6 +110,7 @@ def test_docs_command_selection():
     assert all("--host" not in c for _, c in keep)
     assert any("--host" in c for c in skipped)  # the live-arm guide is read, and skipped
     assert not any(c.startswith("urident excite") for _, c in keep)
+    assert not any(STARTS_A_CONTROLLER.search(c) for _, c in keep)  # they run beside the controller tests
     # the commands that left the README when it became a front page run here
     assert any(c.startswith("urident gap --robot ur10e") for _, c in keep)
     assert any(c.startswith("urident identify logs/sample_ident.csv") for _, c in keep)
