@@ -4,6 +4,7 @@ ports (one binds 0.0.0.0) and run in real time, so under pytest-xdist they share
 
 from __future__ import annotations
 
+import ast
 import re
 from pathlib import Path
 
@@ -12,5 +13,16 @@ STARTS_A_CONTROLLER = re.compile(r'SimControllerProcess|run_session\(|run_trajec
 
 
 def starts_a_controller(path: Path) -> bool:
-    """True when ``path``'s text names a way to start a controller (a conservative reading)."""
-    return bool(STARTS_A_CONTROLLER.search(path.read_text(encoding="utf-8")))
+    """True when ``path``'s code (docstrings and comments aside) names a way to start a controller;
+    a conservative reading: a mention in a string counts."""
+    source = path.read_text(encoding="utf-8")
+    docstrings = [ast.get_source_segment(source, node.body[0]) or "" for node in ast.walk(ast.parse(source))
+                  if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
+                  and node.body and isinstance(node.body[0], ast.Expr)
+                  and isinstance(node.body[0].value, ast.Constant) and isinstance(node.body[0].value.value, str)]
+    text = source
+    for doc in docstrings:
+        text = text.replace(doc, "", 1)
+    code = "\n".join(line.split("#", 1)[0] if line.lstrip().startswith("#") or "  #" in line else line
+                     for line in text.splitlines())
+    return bool(STARTS_A_CONTROLLER.search(code))

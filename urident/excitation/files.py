@@ -206,8 +206,7 @@ def parse_trajectory_document(data: Any, path: Path | None = None) -> Trajectory
     urident_version = data.get("urident_version")
     if "urident_version" in data and (not isinstance(urident_version, (str, int, float))
                                       or isinstance(urident_version, bool)
-                                      or (isinstance(urident_version, float)
-                                          and not np.isfinite(urident_version))):
+                                      or not _finite_if_number(urident_version)):
         raise r.fail("urident_version", "must be a string")
 
     robot_ref = r.get(data, "robot", str)
