@@ -18,7 +18,8 @@ thermal_drift            x·q̇_j and x·s with x = time since the start of the 
                          curve 1 − exp(−t/τ_w) (τ_w on a grid), the joint temperature's change
                          since the start, or its difference to the identification logs' mean
                          temperature
-position_ripple          sin(k·q_j), cos(k·q_j) (mode torque) or the same × s (mode friction), k = 2-4,
+position_ripple          sin(k·q_j), cos(k·q_j) (mode torque) or the same × s (mode friction), k = 2-4
+                         (k = 1 too in friction mode: a bearing's run-out),
                          the peaks of the angle-domain spectrum of the identification residual and
                          its clear peaks up to the samples' angle-Nyquist (urident.gap.structure)
 current_delay            dτ̂_j/dt (coefficient −d), or the exact shift τ̂_j(t − d) − τ̂_j(t) (d on a
@@ -74,6 +75,9 @@ STRIBECK_VS = (0.005, 0.01, 0.02, 0.04, 0.08)   # [rad/s]
 #: (also tried) fits only the slow end of that range.
 WARMUP_TAUS_S = (15.0, 30.0, 60.0, 120.0)
 LOW_HARMONICS = (2, 3, 4)    # position_ripple: always tried (k = 1 is a gravity-like term)
+#: ... in friction mode also k = 1: sin(q)·s is no gravity term, and a bearing's run-out or an
+#: eccentric seal varies the friction once per revolution
+FRICTION_LOW_HARMONICS = (1,) + LOW_HARMONICS
 #: presliding: Dahl presliding distances [rad]; the UR10e pair's joints pick 0.1-0.3 mrad
 #: (benchmarks/gap_presliding.py), the grid spans a decade either side.
 PRESLIDING_DELTAS = (1e-4, 3e-4, 1e-3, 3e-3, 1e-2)
@@ -395,7 +399,7 @@ def families(spec, ident: SetContext, valid: SetContext, effects=EFFECTS, ripple
                                            ident.data.sample_rate, ident.sign()[:, j], ripple_peaks)
                     ks_t = sorted(set(LOW_HARMONICS) | set(spec_j.peaks(ripple_peaks))
                                   | {h["k"] for h in fast if h["mode"] == "torque"})
-                    ks_f = sorted(set(LOW_HARMONICS) | set(spec_j.peaks(ripple_peaks, friction=True))
+                    ks_f = sorted(set(FRICTION_LOW_HARMONICS) | set(spec_j.peaks(ripple_peaks, friction=True))
                                   | {h["k"] for h in fast if h["mode"] == "friction"})
                     fam = [position_ripple(j, k, "torque", mode) for k in ks_t]
                     fam += [position_ripple(j, k, "friction", mode) for k in ks_f]
