@@ -260,10 +260,10 @@ def test_friction_driven_by_a_neighbours_load_is_named_with_its_neighbour():
     from urident.model import load_robot
 
     spec = load_robot("ur10e")
-    eff = "effects:\n  - name: neighbour_load_friction\n    joints: [2]\n    coefficient: 0.05\n    neighbour: 3\n"
+    eff = "effects:\n  - name: neighbour_load_friction\n    joints: [1]\n    coefficient: 0.05\n    neighbour: 2\n"
     res = diagnose([simulate(spec, sines(3), eff, seed=5)], [simulate(spec, sines(4), eff, seed=6)], spec,
                    config=FAST)
     first = res.findings[0]
-    assert (first.effect, first.joint, first.magnitude["neighbour_joint"]) == ("neighbour_load_friction", 2, 3), \
+    assert (first.effect, first.joint, first.magnitude["neighbour_joint"]) == ("neighbour_load_friction", 1, 2), \
         format_report(res)
     assert first.magnitude["coefficient"] == pytest.approx(0.05, rel=0.15)

@@ -31,7 +31,8 @@ payload_error            all joints: the torque of 1 kg at the tool point, and t
                          columns m·ρ of body 6 (mass and centre-of-mass shift)
 joint_elasticity         d²τ̂_link,j/dt² (coefficient −J/k)
 quadratic_viscous        q̇_j·|q̇_j| (friction growing faster than linearly with speed)
-neighbour_load_friction  |τ̂_link,k|·s, k = j ± 1: a bearing carrying a neighbour's link moment
+neighbour_load_friction  |τ̂_link,k|·s, k = j ± 1 with an axis perpendicular to j's: a bearing
+                         carrying a neighbour's link moment
 asymmetric_coulomb       |s|: a Coulomb level that differs by direction (coefficient ΔF/2), an offset
                          that acts only while the joint moves
 current_lag              lag_T(τ̂_j) − τ̂_j, lag_T the first-order filter 1/(Ts + 1) (T on a grid;
@@ -65,7 +66,7 @@ DIAGNOSIS_ONLY = ("presliding",)
 EFFECTS = EFFECT_NAMES + DIAGNOSIS_ONLY
 #: Effects that may differ between runs (friction of the day, warm-up, a sensor offset, a payload
 #: added later): also fitted by blocked CV inside the validation logs.
-CV_EFFECTS = ("stribeck", "load_friction", "thermal_drift", "current_offset", "payload_error")
+CV_EFFECTS = ("stribeck", "load_friction", "thermal_drift", "current_offset", "payload_error", "presliding")
 #: Effects the identification fit cannot see when present there too (absorbed exactly by the
 #: base parameters): only CV.
 CV_ONLY = ("payload_error",)
@@ -362,6 +363,14 @@ def payload_error(spec, mode: str = "cv") -> Candidate:
                      ("tool point mass", "m*rho_x6", "m*rho_y6", "m*rho_z6"), build)
 
 
+def perpendicular_neighbours(spec, j: int) -> list[int]:
+    """0-based neighbours of joint ``j`` whose axis is perpendicular to its own (DH twist ±π/2):
+    only their moment bends ``j``'s bearing; a parallel neighbour's torque acts about ``j``'s own
+    axis, in its own load (load_friction)."""
+    alpha = np.asarray(spec.dh["alpha"], float)
+    return [k for k in (j - 1, j + 1) if 0 <= k < len(alpha) and abs(np.sin(alpha[min(j, k)])) > 0.5]
+
+
 def families(spec, ident: SetContext, valid: SetContext, effects=EFFECTS, ripple_peaks: int = 3,
              joints=range(6)) -> list[list[Candidate]]:
     """Every (effect, joint, mode) with its variants; the diagnosis keeps, per family, the variant
@@ -410,7 +419,7 @@ def families(spec, ident: SetContext, valid: SetContext, effects=EFFECTS, ripple
                 elif e == "quadratic_viscous":
                     fam = [quadratic_viscous(j, mode)]
                 elif e == "neighbour_load_friction":
-                    fam = [neighbour_load_friction(j, k, mode) for k in (j - 1, j + 1) if 0 <= k < 6]
+                    fam = [neighbour_load_friction(j, k, mode) for k in perpendicular_neighbours(spec, j)]
                 elif e == "asymmetric_coulomb":
                     fam = [asymmetric_coulomb(j, mode)]
                 elif e == "current_lag":
