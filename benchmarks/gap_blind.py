@@ -828,7 +828,9 @@ def _out_of_family(spec, args, config) -> int:
             verdict = "(< 5 %: not scored)"
         else:
             verdict = "SILENT MISS" if row["silent_miss"] else ("ok" if row["class_accepted"] else "WRONG CLASS")
-        print(f"[{i:3d}] truth {truth:38s} found {found:50s} beyond {row['beyond']} {verdict}", flush=True)
+        err = "" if row.get("shrink_error_pts") is None else f" shrink error {row['shrink_error_pts']:.1f}"
+        print(f"[{i:3d}] truth {truth:38s} found {found:50s} beyond {row['beyond']} events {row['events']}{err} "
+              f"{verdict}", flush=True)
     summary = oof.summarise(rows)
     summary.update(seed=args.seed, robot=args.robot, rate_hz=args.rate, duration_s=args.duration)
     print(json.dumps(summary))

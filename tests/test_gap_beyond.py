@@ -267,3 +267,31 @@ def test_friction_driven_by_a_neighbours_load_is_named_with_its_neighbour():
     assert (first.effect, first.joint, first.magnitude["neighbour_joint"]) == ("neighbour_load_friction", 1, 2), \
         format_report(res)
     assert first.magnitude["coefficient"] == pytest.approx(0.05, rel=0.15)
+
+
+def test_a_stribeck_bump_that_scales_with_another_friction_is_its_transition_not_its_own():
+    from urident.gap.structure import transition_of
+
+    rng = np.random.default_rng(3)
+    t = np.arange(0, 60, 1 / FS)
+    v = 0.3 * np.sin(2 * np.pi * t / 7) * np.sin(2 * np.pi * t / 2.3)     # many slow reversals
+    amp = 2.0 * np.sin(2 * np.pi * t / 11 + 0.4)     # its amplitude differs from reversal to reversal
+    eps, vs = 0.01, 0.01
+    s = np.tanh(v / eps)
+    near = np.exp(-(v / vs) ** 2)
+    bump = near * s                                                       # the Stribeck column
+    other = amp * s                                                       # the other finding's correction
+    noise = 0.05 * rng.standard_normal(len(t))
+    sharper = amp * (np.tanh(v / 0.003) - s) + noise                     # its sign changes more sharply
+    hit = transition_of(bump, sharper, [("position_ripple", other)], near, 0.05)
+    assert hit and hit["of"] == "position_ripple" and hit["scaled_pct"] > hit["constant_pct"]
+    static = 0.8 * bump + noise                                           # a static friction of its own
+    assert transition_of(bump, static, [("position_ripple", other)], near, 0.05) is None
+
+
+def test_a_neighbours_load_is_a_candidate_only_across_perpendicular_axes():
+    from urident.gap.candidates import perpendicular_neighbours
+    from urident.model import load_robot
+
+    spec = load_robot("ur10e")      # axes: 1 vertical; 2, 3, 4 parallel; 5 ⊥ 4; 6 ⊥ 5
+    assert [perpendicular_neighbours(spec, j) for j in range(6)] == [[1], [0], [], [4], [3, 5], [4]]
