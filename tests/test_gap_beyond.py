@@ -295,3 +295,22 @@ def test_a_neighbours_load_is_a_candidate_only_across_perpendicular_axes():
 
     spec = load_robot("ur10e")      # axes: 1 vertical; 2, 3, 4 parallel; 5 ⊥ 4; 6 ⊥ 5
     assert [perpendicular_neighbours(spec, j) for j in range(6)] == [[1], [0], [], [4], [3, 5], [4]]
+
+
+def test_a_second_finding_that_only_mends_the_first_ones_form_is_no_cause_of_its_own():
+    from urident.gap.structure import misfit_of
+
+    rng = np.random.default_rng(4)
+    t = np.arange(0, 60, 1 / FS)
+    v = 0.4 * np.sin(2 * np.pi * t / 6) + 0.2 * np.sin(2 * np.pi * t / 2.1)
+    load = 20 + 10 * np.sin(2 * np.pi * t / 9)                            # a neighbour's load
+    s = np.tanh(v / 0.01)
+    first = 0.03 * load * s                                               # the first finding's correction
+    bins = np.digitize(v, np.quantile(v, np.linspace(0, 1, 13)[1:-1]))
+    noise = 0.05 * rng.standard_normal(len(t))
+    warm = -np.expm1(-t / 15) * v                                         # a second finding's column
+    mend = 0.01 * load * (np.tanh(v / 0.004) - s) + noise                 # the first one's sharper sign
+    hit = misfit_of(warm, mend + 0.3 * np.abs(v) * s, [("neighbour_load_friction", first)], bins, 0.05)
+    assert hit and hit["of"] == "neighbour_load_friction"
+    own = 0.5 * warm + noise                                              # a warm-up of its own
+    assert misfit_of(warm, own, [("neighbour_load_friction", first)], bins, 0.05) is None

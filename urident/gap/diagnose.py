@@ -71,7 +71,7 @@ def claims(findings, final_r, ctx_v, config: GapConfig, current=None) -> list:
     from dataclasses import replace
 
     from urident.gap.significance import noise_sigma
-    from urident.gap.structure import form_left, transition_of
+    from urident.gap.structure import form_left, misfit_of, transition_of, velocity_bins
 
     sigma = noise_sigma(final_r)
     corr = _corrections(current, ctx_v) if current is not None else []
@@ -93,6 +93,17 @@ def claims(findings, final_r, ctx_v, config: GapConfig, current=None) -> list:
                                  f"(scaled: {t['scaled_pct']:.1f} % of the sum of squares, as a constant "
                                  f"static friction: {t['constant_pct']:.1f} %): that friction changes "
                                  f"sign more sharply than tanh(q̇/ε), no static friction of its own")}
+        earlier = [(f"{c.effect} ({c.variant})" if c.variant else c.effect, x[:, j]) for g in out
+                   if g.joint == f.joint and g.effect != "payload_error"
+                   for c, x in corr if _same(g, c) and c.joint == j]
+        if not left and own is not None and earlier and f.effect != "payload_error":
+            bins, axis = velocity_bins(j, ctx_v)
+            m = misfit_of(own[:, j], final_r[:, j] + own[:, j], earlier, bins, config.parsimony_tol)
+            if m:
+                left = {"axis": f"the form of {m['of']} along the {axis}", "shrink_pct": m["scaled_pct"],
+                        "text": (f"what it explains is the form misfit of {m['of']}: that finding scaled "
+                                 f"per bin of the {axis} explains {m['scaled_pct']:.1f} % of the sum of "
+                                 f"squares, this one {m['own_pct']:.1f} %; no cause of its own")}
         out.append(replace(f, claim="partial", remains=left) if left else f)
     return out
 
