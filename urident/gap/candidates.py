@@ -65,7 +65,9 @@ DIAGNOSIS_ONLY = ("presliding",)
 #: The catalogue's names, in its order, then the diagnosis-only candidates.
 EFFECTS = EFFECT_NAMES + DIAGNOSIS_ONLY
 #: Effects that may differ between runs (friction of the day, warm-up, a sensor offset, a payload
-#: added later): also fitted by blocked CV inside the validation logs.
+#: added later) or that the identification run barely excites (presliding: the holding friction
+#: shows only at stops, and an excitation run rests only at its ends): also fitted by blocked CV
+#: inside the validation logs.
 CV_EFFECTS = ("stribeck", "load_friction", "thermal_drift", "current_offset", "payload_error", "presliding")
 #: Effects the identification fit cannot see when present there too (absorbed exactly by the
 #: base parameters): only CV.
