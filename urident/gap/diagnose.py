@@ -62,12 +62,17 @@ def _same(f, c) -> bool:
         c.joint is None or c.joint + 1 == f.joint)
 
 
+def _label(c) -> str:
+    return f"{c.effect} ({c.variant})" if c.variant else c.effect
+
+
 def claims(findings, final_r, ctx_v, config: GapConfig, current=None) -> list:
     """Each finding as a ``cause`` when its form fits, else ``partial`` with what its form leaves
-    along its own axis (:func:`urident.gap.structure.form_left`) after all the findings. A
-    Stribeck bump that scales with another finding of its joint (``current``: the fit of the
-    findings) is that finding's sharper transition (:func:`urident.gap.structure.transition_of`):
-    ``partial`` too, not a static friction of its own."""
+    along its own axis (:func:`urident.gap.structure.form_left`) after all the findings. Also
+    ``partial`` (``current``: the fit of the findings): a Stribeck bump that scales with another
+    finding of its joint, that finding's sharper transition
+    (:func:`urident.gap.structure.transition_of`), and a later finding on a joint that only mends
+    an earlier one's form along the joint's velocity (:func:`urident.gap.structure.misfit_of`)."""
     from dataclasses import replace
 
     from urident.gap.significance import noise_sigma
@@ -84,23 +89,21 @@ def claims(findings, final_r, ctx_v, config: GapConfig, current=None) -> list:
         if not left and f.effect == "stribeck" and own is not None:
             vs = f.magnitude["stribeck_velocity_rad_s"]
             near = np.exp(-(ctx_v.qd[:, j] / vs) ** 2)
-            others = [(f"{c.effect} ({c.variant})" if c.variant else c.effect, x[:, j]) for c, x in corr
-                      if not _same(f, c) and c.joint == j]
+            others = [(_label(c), x[:, j]) for c, x in corr if not _same(f, c) and c.joint == j]
             t = transition_of(own[:, j], final_r[:, j] + own[:, j], others, near, config.parsimony_tol)
             if t:
-                left = {"axis": f"the correction of {t['of']}", "shrink_pct": t["scaled_pct"],
+                left = {"axis": f"the correction of {t['of']}", "share_pct": t["scaled_pct"],
                         "text": (f"its bump near zero velocity scales with the correction of {t['of']} "
                                  f"(scaled: {t['scaled_pct']:.1f} % of the sum of squares, as a constant "
                                  f"static friction: {t['constant_pct']:.1f} %): that friction changes "
                                  f"sign more sharply than tanh(q̇/ε), no static friction of its own")}
-        earlier = [(f"{c.effect} ({c.variant})" if c.variant else c.effect, x[:, j]) for g in out
-                   if g.joint == f.joint and g.effect != "payload_error"
+        earlier = [(_label(c), x[:, j]) for g in out if g.joint == f.joint and g.effect != "payload_error"
                    for c, x in corr if _same(g, c) and c.joint == j]
         if not left and own is not None and earlier and f.effect != "payload_error":
             bins, axis = velocity_bins(j, ctx_v)
             m = misfit_of(own[:, j], final_r[:, j] + own[:, j], earlier, bins, config.parsimony_tol)
             if m:
-                left = {"axis": f"the form of {m['of']} along the {axis}", "shrink_pct": m["scaled_pct"],
+                left = {"axis": f"the form of {m['of']} along the {axis}", "share_pct": m["scaled_pct"],
                         "text": (f"what it explains is the form misfit of {m['of']}: that finding scaled "
                                  f"per bin of the {axis} explains {m['scaled_pct']:.1f} % of the sum of "
                                  f"squares, this one {m['own_pct']:.1f} %; no cause of its own")}
