@@ -9,7 +9,8 @@ all joints: payload_error), fitted in one mode:
   added later, a sensor offset), the baseline stays fixed and only the effect's columns are fitted by blocked
   cross-validation inside the validation logs.
 
-Columns (on the rows of joint j; ε the model's tanh slope, s = tanh(q̇_j/ε)):
+Columns (on the rows of joint j; ε the model's tanh slope, s = tanh(q̇_j/ε); the friction-mode
+ripple and neighbour-load friction also with a sharper s = tanh(q̇_j/(w·ε)), w in SIGN_WIDTHS):
 
 =======================  =============================================================================
 stribeck                 exp(−(q̇_j/v_s)²)·s, v_s on a grid
@@ -84,6 +85,9 @@ FRICTION_LOW_HARMONICS = (1,) + LOW_HARMONICS
 #: presliding: Dahl presliding distances [rad]; the UR10e pair's joints pick 0.1-0.3 mrad
 #: (benchmarks/gap_presliding.py), the grid spans a decade either side.
 PRESLIDING_DELTAS = (1e-4, 3e-4, 1e-3, 3e-3, 1e-2)
+#: Friction transition widths of the friction-mode columns, as fractions of the baseline's ε: a
+#: real friction changes sign within its presliding distance, often more sharply than tanh(q̇/ε)
+SIGN_WIDTHS = (1.0, 0.5, 0.25)
 #: current_lag: first-order time constants [s] (a current loop or measurement filter: a few ms)
 LAG_TAUS_S = (0.002, 0.004, 0.007, 0.010, 0.015)
 #: current_delay: delays of the exact-shift variants [s] (one to a few controller periods)
@@ -248,13 +252,22 @@ def thermal_drift(j: int, variable: str, mode: str = "ident", reference: np.ndar
                   {"variable": variable, "tau_s": tau_s})
 
 
-def position_ripple(j: int, k: int, ripple_mode: str, mode: str = "ident") -> Candidate:
+def _sign(ctx: SetContext, j: int, width: float) -> np.ndarray:
+    """(N,) tanh(q̇_j/(width·ε)): the baseline's Coulomb state, or a sharper one (``width`` < 1)."""
+    return ctx.sign()[:, j] if width == 1.0 else np.tanh(ctx.qd[:, j] / (width * ctx.friction_eps))
+
+
+def _width_label(width: float) -> str:
+    return "" if width == 1.0 else f", sign width {width:g} eps"
+
+
+def position_ripple(j: int, k: int, ripple_mode: str, mode: str = "ident", width: float = 1.0) -> Candidate:
     def cols(ctx):
         q = ctx.q[:, j]
-        s = ctx.sign()[:, j] if ripple_mode == "friction" else 1.0
+        s = _sign(ctx, j, width) if ripple_mode == "friction" else 1.0
         return [np.sin(k * q) * s, np.cos(k * q) * s]
-    return _joint("position_ripple", j, f"k={k} {ripple_mode}", mode, ("sin(kq)", "cos(kq)"), cols,
-                  {"k": int(k), "ripple_mode": ripple_mode})
+    return _joint("position_ripple", j, f"k={k} {ripple_mode}{_width_label(width)}", mode, ("sin(kq)", "cos(kq)"),
+                  cols, {"k": int(k), "ripple_mode": ripple_mode, "sign_width": width})
 
 
 def shifted(ctx: SetContext, j: int, d: float) -> np.ndarray:
@@ -281,12 +294,12 @@ def quadratic_viscous(j: int, mode: str = "ident") -> Candidate:
                   lambda ctx: [features.quadratic_viscous(ctx.qd[:, j])])
 
 
-def neighbour_load_friction(j: int, k: int, mode: str = "ident") -> Candidate:
+def neighbour_load_friction(j: int, k: int, mode: str = "ident", width: float = 1.0) -> Candidate:
     """Friction of joint ``j`` driven by the load of the neighbour joint ``k`` (0-based)."""
     def cols(ctx):
-        return [features.load_friction(ctx.tau_link[:, k], ctx.sign()[:, j])]
-    return _joint("neighbour_load_friction", j, f"load of joint {k + 1}", mode, ("|tau_link,k|*sign(qd)",),
-                  cols, {"neighbour": k})
+        return [features.load_friction(ctx.tau_link[:, k], _sign(ctx, j, width))]
+    return _joint("neighbour_load_friction", j, f"load of joint {k + 1}{_width_label(width)}", mode,
+                  ("|tau_link,k|*sign(qd)",), cols, {"neighbour": k, "sign_width": width})
 
 
 def asymmetric_coulomb(j: int, mode: str = "ident") -> Candidate:
@@ -413,7 +426,7 @@ def families(spec, ident: SetContext, valid: SetContext, effects=EFFECTS, ripple
                     ks_f = sorted(set(FRICTION_LOW_HARMONICS) | set(spec_j.peaks(ripple_peaks, friction=True))
                                   | {h["k"] for h in fast if h["mode"] == "friction"})
                     fam = [position_ripple(j, k, "torque", mode) for k in ks_t]
-                    fam += [position_ripple(j, k, "friction", mode) for k in ks_f]
+                    fam += [position_ripple(j, k, "friction", mode, w) for k in ks_f for w in SIGN_WIDTHS]
                 elif e == "current_delay":
                     fam = [current_delay(j, mode)] + [current_delay(j, mode, d) for d in DELAYS_S]
                     if "current_lag" in effects:      # one family: the measurement's dynamics
@@ -421,7 +434,8 @@ def families(spec, ident: SetContext, valid: SetContext, effects=EFFECTS, ripple
                 elif e == "quadratic_viscous":
                     fam = [quadratic_viscous(j, mode)]
                 elif e == "neighbour_load_friction":
-                    fam = [neighbour_load_friction(j, k, mode) for k in perpendicular_neighbours(spec, j)]
+                    fam = [neighbour_load_friction(j, k, mode, w) for k in perpendicular_neighbours(spec, j)
+                           for w in SIGN_WIDTHS]
                 elif e == "asymmetric_coulomb":
                     fam = [asymmetric_coulomb(j, mode)]
                 elif e == "current_lag":
