@@ -464,7 +464,7 @@ def run_scenario(spec, sc: Scenario, rate: float = 200.0, duration: float = 60.0
     out = {"index": sc.index, "truth": [{"effect": e, "joint": j + 1} for e, j in truth],
            "found": [{"effect": e, "joint": j + 1, "shrink_pct": sh} for (e, j), sh in zip(found, found_shrink)],
            "entries": [t["entry"] for t in sc.truth], "diagnosis_s": wall, "diagnosis_cpu_s": cpu,
-           "diagnosis_first_in_process": first, "load_average_1min": load}
+           "diagnosis_first_in_process": first, "load_average_1min": load, "events": len(res.events)}
     if not truth:
         out["false_alarm"] = bool(found)
         out["wrong_findings"] = len(found)
@@ -543,6 +543,7 @@ def summarise(rows: list[dict]) -> dict:
         "joint_accuracy_pct": 100.0 * np.mean([r["joint_ok"] for r in eff]) if eff else None,
         "all_effects_found_pct": 100.0 * np.mean([r["all_found"] for r in eff]) if eff else None,
         "false_alarms": int(sum(r["false_alarm"] for r in free)),
+        "effect_free_with_events": int(sum(bool(r.get("events")) for r in free)),
         # findings naming an (effect, joint) that is not true, where the true effect does not
         # matter (the right answer there is "nothing found") and where it does (an extra finding)
         "wrong_findings_not_visible": int(sum(r["wrong_findings"] for r in eff if not r["visible"])),
@@ -685,7 +686,8 @@ def _print_summary(summary: dict) -> None:
     if summary["visible"]:
         bands = summary["joint_accuracy_by_actual_shrink"]
         print("joint accuracy by actual shrink: " + ", ".join(f"{k}: {ok}/{n}" for k, (ok, n) in bands.items()))
-    print(f"false alarms: {summary['false_alarms']} of {summary['effect_free']} effect-free scenarios")
+    print(f"false alarms: {summary['false_alarms']} of {summary['effect_free']} effect-free scenarios "
+          f"(with an event: {summary['effect_free_with_events']})")
     if summary["with_effect"]:
         print(f"wrong findings (an effect or joint that is not true): on {summary['not_visible_with_wrong_findings']} "
               f"of {summary['with_effect'] - summary['visible']} scenarios whose effect does not matter "
@@ -828,7 +830,9 @@ def _out_of_family(spec, args, config) -> int:
             verdict = "(< 5 %: not scored)"
         else:
             verdict = "SILENT MISS" if row["silent_miss"] else ("ok" if row["class_accepted"] else "WRONG CLASS")
-        print(f"[{i:3d}] truth {truth:38s} found {found:50s} beyond {row['beyond']} {verdict}", flush=True)
+        err = "" if row.get("shrink_error_pts") is None else f" shrink error {row['shrink_error_pts']:.1f}"
+        print(f"[{i:3d}] truth {truth:38s} found {found:50s} beyond {row['beyond']} events {row['events']}{err} "
+              f"{verdict}", flush=True)
     summary = oof.summarise(rows)
     summary.update(seed=args.seed, robot=args.robot, rate_hz=args.rate, duration_s=args.duration)
     print(json.dumps(summary))

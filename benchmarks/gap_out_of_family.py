@@ -21,7 +21,7 @@ current_lag            i_meas = low-pass(i, T): a first-order current loop/filte
 cogging_2x             τ = A·sin(2·N·q + φ): a ripple at twice the wave generator's rate (N = 101,
                        two teeth engagements per wave-generator turn; Tuttle & Seering 1996)
 neighbour_load         τ = μ·|τ_L,k|·tanh(q̇/v₀), k the perpendicular neighbour's joint: a
-                       bearing carrying the next link's moment (cross-coupled bearing friction)
+                       bearing carrying the neighbour link's moment (cross-coupled bearing friction)
 =====================  ===========================================================================
 """
 
@@ -42,12 +42,17 @@ GEAR = 101
 
 
 def neighbour(j: int) -> int:
-    """The perpendicular neighbour whose load a joint's bearing carries (UR: 2↔3 parallel, so
-    joint 1 takes joint 2's, 2 takes 1's... simply the next joint, the last the previous)."""
-    return j + 1 if j < 5 else j - 1
+    """The perpendicular neighbour whose link moment a joint's bearing carries. UR arms: joint 1's
+    axis is vertical, joints 2, 3 and 4 are parallel and horizontal, 5 is perpendicular to 4 and
+    6 to 5; a parallel neighbour's torque acts about the joint's own axis (its own load), so
+    joint 2 takes joint 1's, 4 takes 5's, 5 and 6 the other wrist joint's, joint 1 joint 2's.
+    Joint 3 has none (:func:`draw` puts the form on joint 2 instead)."""
+    return {0: 1, 1: 0, 3: 4, 4: 3, 5: 4}[j]
 
 
 def draw(rng, form: str, joint: int) -> dict:
+    if form == "neighbour_load" and joint == 2:
+        joint = 1                   # joint 3's neighbours are both parallel to it (neighbour())
     big = joint < 3
     p: dict = {"form": form, "joint": int(joint)}
     if form == "quadratic_viscous":

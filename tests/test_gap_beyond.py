@@ -260,10 +260,57 @@ def test_friction_driven_by_a_neighbours_load_is_named_with_its_neighbour():
     from urident.model import load_robot
 
     spec = load_robot("ur10e")
-    eff = "effects:\n  - name: neighbour_load_friction\n    joints: [2]\n    coefficient: 0.05\n    neighbour: 3\n"
+    eff = "effects:\n  - name: neighbour_load_friction\n    joints: [1]\n    coefficient: 0.05\n    neighbour: 2\n"
     res = diagnose([simulate(spec, sines(3), eff, seed=5)], [simulate(spec, sines(4), eff, seed=6)], spec,
                    config=FAST)
     first = res.findings[0]
-    assert (first.effect, first.joint, first.magnitude["neighbour_joint"]) == ("neighbour_load_friction", 2, 3), \
+    assert (first.effect, first.joint, first.magnitude["neighbour_joint"]) == ("neighbour_load_friction", 1, 2), \
         format_report(res)
     assert first.magnitude["coefficient"] == pytest.approx(0.05, rel=0.15)
+
+
+def test_a_stribeck_bump_that_scales_with_another_friction_is_its_transition_not_its_own():
+    from urident.gap.structure import transition_of
+
+    rng = np.random.default_rng(3)
+    t = np.arange(0, 60, 1 / FS)
+    v = 0.3 * np.sin(2 * np.pi * t / 7) * np.sin(2 * np.pi * t / 2.3)     # many slow reversals
+    amp = 2.0 * np.sin(2 * np.pi * t / 11 + 0.4)     # its amplitude differs from reversal to reversal
+    eps, vs = 0.01, 0.01
+    s = np.tanh(v / eps)
+    near = np.exp(-(v / vs) ** 2)
+    bump = near * s                                                       # the Stribeck column
+    other = amp * s                                                       # the other finding's correction
+    noise = 0.05 * rng.standard_normal(len(t))
+    sharper = amp * (np.tanh(v / 0.003) - s) + noise                     # its sign changes more sharply
+    hit = transition_of(bump, sharper, [("position_ripple", other)], near, 0.05)
+    assert hit and hit["of"] == "position_ripple" and hit["scaled_pct"] > hit["constant_pct"]
+    static = 0.8 * bump + noise                                           # a static friction of its own
+    assert transition_of(bump, static, [("position_ripple", other)], near, 0.05) is None
+
+
+def test_a_neighbours_load_is_a_candidate_only_across_perpendicular_axes():
+    from urident.gap.candidates import perpendicular_neighbours
+    from urident.model import load_robot
+
+    spec = load_robot("ur10e")      # axes: 1 vertical; 2, 3, 4 parallel; 5 ⊥ 4; 6 ⊥ 5
+    assert [perpendicular_neighbours(spec, j) for j in range(6)] == [[1], [0], [], [4], [3, 5], [4]]
+
+
+def test_a_second_finding_that_only_mends_the_first_ones_form_is_no_cause_of_its_own():
+    from urident.gap.structure import misfit_of
+
+    rng = np.random.default_rng(4)
+    t = np.arange(0, 60, 1 / FS)
+    v = 0.4 * np.sin(2 * np.pi * t / 6) + 0.2 * np.sin(2 * np.pi * t / 2.1)
+    load = 20 + 10 * np.sin(2 * np.pi * t / 9)                            # a neighbour's load
+    s = np.tanh(v / 0.01)
+    first = 0.03 * load * s                                               # the first finding's correction
+    bins = np.digitize(v, np.quantile(v, np.linspace(0, 1, 13)[1:-1]))
+    noise = 0.05 * rng.standard_normal(len(t))
+    warm = -np.expm1(-t / 15) * v                                         # a second finding's column
+    mend = 0.01 * load * (np.tanh(v / 0.004) - s) + noise                 # the first one's sharper sign
+    hit = misfit_of(warm, mend + 0.3 * np.abs(v) * s, [("neighbour_load_friction", first)], bins, 0.05)
+    assert hit and hit["of"] == "neighbour_load_friction"
+    own = 0.5 * warm + noise                                              # a warm-up of its own
+    assert misfit_of(warm, own, [("neighbour_load_friction", first)], bins, 0.05) is None

@@ -9,7 +9,8 @@ all joints: payload_error), fitted in one mode:
   added later, a sensor offset), the baseline stays fixed and only the effect's columns are fitted by blocked
   cross-validation inside the validation logs.
 
-Columns (on the rows of joint j; ε the model's tanh slope, s = tanh(q̇_j/ε)):
+Columns (on the rows of joint j; ε the model's tanh slope, s = tanh(q̇_j/ε); the friction-mode
+ripple and neighbour-load friction also with a sharper s = tanh(q̇_j/(w·ε)), w in SIGN_WIDTHS):
 
 =======================  =============================================================================
 stribeck                 exp(−(q̇_j/v_s)²)·s, v_s on a grid
@@ -18,7 +19,8 @@ thermal_drift            x·q̇_j and x·s with x = time since the start of the 
                          curve 1 − exp(−t/τ_w) (τ_w on a grid), the joint temperature's change
                          since the start, or its difference to the identification logs' mean
                          temperature
-position_ripple          sin(k·q_j), cos(k·q_j) (mode torque) or the same × s (mode friction), k = 2-4,
+position_ripple          sin(k·q_j), cos(k·q_j) (mode torque) or the same × s (mode friction), k = 2-4
+                         (k = 1 too in friction mode: a bearing's run-out),
                          the peaks of the angle-domain spectrum of the identification residual and
                          its clear peaks up to the samples' angle-Nyquist (urident.gap.structure)
 current_delay            dτ̂_j/dt (coefficient −d), or the exact shift τ̂_j(t − d) − τ̂_j(t) (d on a
@@ -30,7 +32,8 @@ payload_error            all joints: the torque of 1 kg at the tool point, and t
                          columns m·ρ of body 6 (mass and centre-of-mass shift)
 joint_elasticity         d²τ̂_link,j/dt² (coefficient −J/k)
 quadratic_viscous        q̇_j·|q̇_j| (friction growing faster than linearly with speed)
-neighbour_load_friction  |τ̂_link,k|·s, k = j ± 1: a bearing carrying a neighbour's link moment
+neighbour_load_friction  |τ̂_link,k|·s, k = j ± 1 with an axis perpendicular to j's: a bearing
+                         carrying a neighbour's link moment
 asymmetric_coulomb       |s|: a Coulomb level that differs by direction (coefficient ΔF/2), an offset
                          that acts only while the joint moves
 current_lag              lag_T(τ̂_j) − τ̂_j, lag_T the first-order filter 1/(Ts + 1) (T on a grid;
@@ -63,8 +66,10 @@ DIAGNOSIS_ONLY = ("presliding",)
 #: The catalogue's names, in its order, then the diagnosis-only candidates.
 EFFECTS = EFFECT_NAMES + DIAGNOSIS_ONLY
 #: Effects that may differ between runs (friction of the day, warm-up, a sensor offset, a payload
-#: added later): also fitted by blocked CV inside the validation logs.
-CV_EFFECTS = ("stribeck", "load_friction", "thermal_drift", "current_offset", "payload_error")
+#: added later) or that the identification run barely excites (presliding: the holding friction
+#: shows only at stops, and an excitation run rests only at its ends): also fitted by blocked CV
+#: inside the validation logs.
+CV_EFFECTS = ("stribeck", "load_friction", "thermal_drift", "current_offset", "payload_error", "presliding")
 #: Effects the identification fit cannot see when present there too (absorbed exactly by the
 #: base parameters): only CV.
 CV_ONLY = ("payload_error",)
@@ -74,9 +79,15 @@ STRIBECK_VS = (0.005, 0.01, 0.02, 0.04, 0.08)   # [rad/s]
 #: (also tried) fits only the slow end of that range.
 WARMUP_TAUS_S = (15.0, 30.0, 60.0, 120.0)
 LOW_HARMONICS = (2, 3, 4)    # position_ripple: always tried (k = 1 is a gravity-like term)
+#: ... in friction mode also k = 1: sin(q)·s is no gravity term, and a bearing's run-out or an
+#: eccentric seal varies the friction once per revolution
+FRICTION_LOW_HARMONICS = (1,) + LOW_HARMONICS
 #: presliding: Dahl presliding distances [rad]; the UR10e pair's joints pick 0.1-0.3 mrad
 #: (benchmarks/gap_presliding.py), the grid spans a decade either side.
 PRESLIDING_DELTAS = (1e-4, 3e-4, 1e-3, 3e-3, 1e-2)
+#: Friction transition widths of the friction-mode columns, as fractions of the baseline's ε: a
+#: real friction changes sign within its presliding distance, often more sharply than tanh(q̇/ε)
+SIGN_WIDTHS = (1.0, 0.5, 0.25)
 #: current_lag: first-order time constants [s] (a current loop or measurement filter: a few ms)
 LAG_TAUS_S = (0.002, 0.004, 0.007, 0.010, 0.015)
 #: current_delay: delays of the exact-shift variants [s] (one to a few controller periods)
@@ -241,13 +252,22 @@ def thermal_drift(j: int, variable: str, mode: str = "ident", reference: np.ndar
                   {"variable": variable, "tau_s": tau_s})
 
 
-def position_ripple(j: int, k: int, ripple_mode: str, mode: str = "ident") -> Candidate:
+def _sign(ctx: SetContext, j: int, width: float) -> np.ndarray:
+    """(N,) tanh(q̇_j/(width·ε)): the baseline's Coulomb state, or a sharper one (``width`` < 1)."""
+    return ctx.sign()[:, j] if width == 1.0 else np.tanh(ctx.qd[:, j] / (width * ctx.friction_eps))
+
+
+def _width_label(width: float) -> str:
+    return "" if width == 1.0 else f", sign width {width:g} eps"
+
+
+def position_ripple(j: int, k: int, ripple_mode: str, mode: str = "ident", width: float = 1.0) -> Candidate:
     def cols(ctx):
         q = ctx.q[:, j]
-        s = ctx.sign()[:, j] if ripple_mode == "friction" else 1.0
+        s = _sign(ctx, j, width) if ripple_mode == "friction" else 1.0
         return [np.sin(k * q) * s, np.cos(k * q) * s]
-    return _joint("position_ripple", j, f"k={k} {ripple_mode}", mode, ("sin(kq)", "cos(kq)"), cols,
-                  {"k": int(k), "ripple_mode": ripple_mode})
+    return _joint("position_ripple", j, f"k={k} {ripple_mode}{_width_label(width)}", mode, ("sin(kq)", "cos(kq)"),
+                  cols, {"k": int(k), "ripple_mode": ripple_mode, "sign_width": width})
 
 
 def shifted(ctx: SetContext, j: int, d: float) -> np.ndarray:
@@ -274,12 +294,12 @@ def quadratic_viscous(j: int, mode: str = "ident") -> Candidate:
                   lambda ctx: [features.quadratic_viscous(ctx.qd[:, j])])
 
 
-def neighbour_load_friction(j: int, k: int, mode: str = "ident") -> Candidate:
+def neighbour_load_friction(j: int, k: int, mode: str = "ident", width: float = 1.0) -> Candidate:
     """Friction of joint ``j`` driven by the load of the neighbour joint ``k`` (0-based)."""
     def cols(ctx):
-        return [features.load_friction(ctx.tau_link[:, k], ctx.sign()[:, j])]
-    return _joint("neighbour_load_friction", j, f"load of joint {k + 1}", mode, ("|tau_link,k|*sign(qd)",),
-                  cols, {"neighbour": k})
+        return [features.load_friction(ctx.tau_link[:, k], _sign(ctx, j, width))]
+    return _joint("neighbour_load_friction", j, f"load of joint {k + 1}{_width_label(width)}", mode,
+                  ("|tau_link,k|*sign(qd)",), cols, {"neighbour": k, "sign_width": width})
 
 
 def asymmetric_coulomb(j: int, mode: str = "ident") -> Candidate:
@@ -358,6 +378,14 @@ def payload_error(spec, mode: str = "cv") -> Candidate:
                      ("tool point mass", "m*rho_x6", "m*rho_y6", "m*rho_z6"), build)
 
 
+def perpendicular_neighbours(spec, j: int) -> list[int]:
+    """0-based neighbours of joint ``j`` whose axis is perpendicular to its own (DH twist ±π/2):
+    only their moment bends ``j``'s bearing; a parallel neighbour's torque acts about ``j``'s own
+    axis, in its own load (load_friction)."""
+    alpha = np.asarray(spec.dh["alpha"], float)
+    return [k for k in (j - 1, j + 1) if 0 <= k < len(alpha) and abs(np.sin(alpha[min(j, k)])) > 0.5]
+
+
 def families(spec, ident: SetContext, valid: SetContext, effects=EFFECTS, ripple_peaks: int = 3,
              joints=range(6)) -> list[list[Candidate]]:
     """Every (effect, joint, mode) with its variants; the diagnosis keeps, per family, the variant
@@ -395,10 +423,10 @@ def families(spec, ident: SetContext, valid: SetContext, effects=EFFECTS, ripple
                                            ident.data.sample_rate, ident.sign()[:, j], ripple_peaks)
                     ks_t = sorted(set(LOW_HARMONICS) | set(spec_j.peaks(ripple_peaks))
                                   | {h["k"] for h in fast if h["mode"] == "torque"})
-                    ks_f = sorted(set(LOW_HARMONICS) | set(spec_j.peaks(ripple_peaks, friction=True))
+                    ks_f = sorted(set(FRICTION_LOW_HARMONICS) | set(spec_j.peaks(ripple_peaks, friction=True))
                                   | {h["k"] for h in fast if h["mode"] == "friction"})
                     fam = [position_ripple(j, k, "torque", mode) for k in ks_t]
-                    fam += [position_ripple(j, k, "friction", mode) for k in ks_f]
+                    fam += [position_ripple(j, k, "friction", mode, w) for k in ks_f for w in SIGN_WIDTHS]
                 elif e == "current_delay":
                     fam = [current_delay(j, mode)] + [current_delay(j, mode, d) for d in DELAYS_S]
                     if "current_lag" in effects:      # one family: the measurement's dynamics
@@ -406,7 +434,8 @@ def families(spec, ident: SetContext, valid: SetContext, effects=EFFECTS, ripple
                 elif e == "quadratic_viscous":
                     fam = [quadratic_viscous(j, mode)]
                 elif e == "neighbour_load_friction":
-                    fam = [neighbour_load_friction(j, k, mode) for k in (j - 1, j + 1) if 0 <= k < 6]
+                    fam = [neighbour_load_friction(j, k, mode, w) for k in perpendicular_neighbours(spec, j)
+                           for w in SIGN_WIDTHS]
                 elif e == "asymmetric_coulomb":
                     fam = [asymmetric_coulomb(j, mode)]
                 elif e == "current_lag":

@@ -27,7 +27,7 @@ class GapConfig:
                                      # (calibration: MIN_SHRINK_CALIBRATION)
     cv_min_noise_ratio: float = 0.5  # a CV-mode finding's correction RMS on its joint must be at
                                      # least this multiple of the joint's white-noise torque
-    ident_max_projection: float = 2.0  # an identification-mode finding's joint may hold at most this
+    ident_max_projection: float = 1.5  # an identification-mode finding's joint may hold at most this
                                      # multiple of its correction along it (0: no limit)
     max_effects: int = 3
     confound_corr: float = 0.8

@@ -50,20 +50,63 @@ def joints_at_rest(qd) -> list[int]:
     return [int(j) for j in np.flatnonzero(share >= AT_REST_SHARE)]
 
 
-def claims(findings, final_r, ctx_v, config: GapConfig) -> list:
+def _corrections(current, ctx_v) -> list:
+    """(candidate, (N, 6) its own columns × its coefficients on ``ctx_v``) of the fit ``current``
+    (no refit collateral of the base parameters: the effect's own form)."""
+    coef = current.coefficients()
+    return [(c, c.features(ctx_v) @ coef[c]) for c in list(current.ident) + list(current.cv)]
+
+
+def _same(f, c) -> bool:
+    return (c.effect, c.variant, c.mode) == (f.effect, f.variant, f.mode) and (
+        c.joint is None or c.joint + 1 == f.joint)
+
+
+def _label(c) -> str:
+    return f"{c.effect} ({c.variant})" if c.variant else c.effect
+
+
+def claims(findings, final_r, ctx_v, config: GapConfig, current=None) -> list:
     """Each finding as a ``cause`` when its form fits, else ``partial`` with what its form leaves
-    along its own axis (:func:`urident.gap.structure.form_left`) after all the findings."""
+    along its own axis (:func:`urident.gap.structure.form_left`) after all the findings. Also
+    ``partial`` (``current``: the fit of the findings): a Stribeck bump that scales with another
+    finding of its joint, that finding's sharper transition
+    (:func:`urident.gap.structure.transition_of`), and a later finding on a joint that only mends
+    an earlier one's form along the joint's velocity (:func:`urident.gap.structure.misfit_of`)."""
     from dataclasses import replace
 
     from urident.gap.significance import noise_sigma
-    from urident.gap.structure import form_left
+    from urident.gap.structure import form_left, misfit_of, transition_of, velocity_bins
 
     sigma = noise_sigma(final_r)
+    corr = _corrections(current, ctx_v) if current is not None else []
     out = []
     for f in findings:
         j = f.joint - 1
         left = form_left(f.effect, j, final_r[:, j], ctx_v, float(sigma[j]), config.min_shrink_pct,
                          config.cv_min_noise_ratio)
+        own = next((x for c, x in corr if _same(f, c)), None)
+        if not left and f.effect == "stribeck" and own is not None:
+            vs = f.magnitude["stribeck_velocity_rad_s"]
+            near = np.exp(-(ctx_v.qd[:, j] / vs) ** 2)
+            others = [(_label(c), x[:, j]) for c, x in corr if not _same(f, c) and c.joint == j]
+            t = transition_of(own[:, j], final_r[:, j] + own[:, j], others, near, config.parsimony_tol)
+            if t:
+                left = {"axis": f"the correction of {t['of']}", "share_pct": t["scaled_pct"],
+                        "text": (f"its bump near zero velocity scales with the correction of {t['of']} "
+                                 f"(scaled: {t['scaled_pct']:.1f} % of the sum of squares, as a constant "
+                                 f"static friction: {t['constant_pct']:.1f} %): that friction changes "
+                                 f"sign more sharply than tanh(q̇/ε), no static friction of its own")}
+        earlier = [(_label(c), x[:, j]) for g in out if g.joint == f.joint and g.effect != "payload_error"
+                   for c, x in corr if _same(g, c) and c.joint == j]
+        if not left and own is not None and earlier and f.effect != "payload_error":
+            bins, axis = velocity_bins(j, ctx_v)
+            m = misfit_of(own[:, j], final_r[:, j] + own[:, j], earlier, bins, config.parsimony_tol)
+            if m:
+                left = {"axis": f"the form of {m['of']} along the {axis}", "share_pct": m["scaled_pct"],
+                        "text": (f"what it explains is the form misfit of {m['of']}: that finding scaled "
+                                 f"per bin of the {axis} explains {m['scaled_pct']:.1f} % of the sum of "
+                                 f"squares, this one {m['own_pct']:.1f} %; no cause of its own")}
         out.append(replace(f, claim="partial", remains=left) if left else f)
     return out
 
@@ -125,7 +168,7 @@ def _diagnose_prepared(spec, ident: GapSet, valid: GapSet, params, config: GapCo
 
     findings, steps, confounds, current = select(scorer, pool, block, config, ctx_v, spec)
     final_r = current.residual
-    findings = claims(findings, final_r, ctx_v, config)
+    findings = claims(findings, final_r, ctx_v, config, current)
     where["unexplained"] = describe_unexplained(ctx_v, final_r, min_shrink_pct=config.min_shrink_pct,
                                                 noise_ratio=config.cv_min_noise_ratio)   # beyond the catalogue
     for ctx in (ctx_i, ctx_v):

@@ -142,19 +142,27 @@ def _stretches(z: np.ndarray) -> np.ndarray:
 
 #: Stribeck velocities [rad/s] of the smooth basis' near-zero-velocity columns.
 BASIS_VS = (0.01, 0.03, 0.08)
+#: Presliding distances [rad] of its holding-friction columns (the ends of the candidates' grid).
+BASIS_DELTAS = (1e-4, 3e-3)
 
 
 def smooth_basis(ctx) -> np.ndarray:
     """(N, 6, k) per joint the columns of the smooth effects of a joint's own state that leave
     short bumps at a velocity reversal (Coulomb and Stribeck friction, a delay's dτ̂/dt, load
-    friction, a gain) and a constant, from a :class:`urident.gap.residual.SetContext`: fitted per
+    friction, a gain), a step at each stop (friction held with the sign of the motion before:
+    the Dahl state minus tanh) and a constant, from a :class:`urident.gap.residual.SetContext`: fitted per
     joint and taken out of the residual before events are looked for, so that such a bump
     repeated at every reversal is never an event."""
     from urident.ident import features
 
+    from urident.ident.friction import dahl_states, velocity_displacement
+
     s = ctx.sign()
     cols = [np.ones_like(s), s, ctx.qd, ctx.dtau, ctx.tau_hat, np.abs(ctx.tau_link) * s]
     cols += [features.stribeck(ctx.qd, ctx.friction_eps, vs) for vs in BASIS_VS]
+    p = ctx.data.prepared
+    z = dahl_states(velocity_displacement(p.t, p.qd, p.segment), BASIS_DELTAS, p.segment)
+    cols += [zd - s for zd in z]           # friction held at a stop with the sign of the move before
     return np.stack(cols, axis=2)
 
 

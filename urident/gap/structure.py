@@ -228,5 +228,66 @@ def form_left(effect: str, j: int, r: np.ndarray, ctx, sigma_j: float, min_shrin
                      f"would shrink the RMS by a further {shrink:.1f} % (largest in [{lo:.3g}, {hi:.3g}])")}
 
 
+def velocity_bins(j: int, ctx) -> tuple[np.ndarray, str]:
+    """(N,) the bin of joint ``j``'s signed velocity of every sample (:data:`FORM_BINS` quantile
+    bins per direction and the near-zero band), and the axis' name."""
+    return _axis_bins("velocity", j, ctx)
+
+
 def _axis_values(axis: str, j: int, ctx) -> np.ndarray:
     return {"velocity": ctx.qd[:, j], "torque": ctx.tau_hat[:, j], "time": ctx.data.run_time}[axis]
+
+
+def transition_of(col: np.ndarray, r: np.ndarray, others: list[tuple[str, np.ndarray]], near: np.ndarray,
+                  tol: float) -> dict | None:
+    """Whether a near-zero-velocity friction column ``col`` (N,) of a joint (a Stribeck bump) is
+    another finding's transition rather than a friction of its own: ``others`` (label, that
+    finding's correction on the joint (N,)); ``near`` (N,) the bump's own shape (≤ 1, largest at
+    rest). A friction A·s whose sign changes more sharply than the baseline's s = tanh(q̇/ε) leaves
+    A·(sharper − s), a bump scaled by A; a constant static friction leaves one scaled by nothing.
+    When the other finding's correction times ``near`` explains ``r`` (the joint's residual
+    without ``col``'s correction) at least (1 − ``tol``) as well as ``col`` does, the bump is
+    that finding's (its ``label``, with both shares of r's sum of squares), else None."""
+    def share(x):
+        xx = float(x @ x)
+        return float((r @ x) ** 2 / xx) if xx > 0 else 0.0
+    own = share(col)
+    rr = float(r @ r)
+    best = None
+    for name, c in others:
+        s = share(c * near)
+        if own > 0 and s >= (1 - tol) * own and (best is None or s > best[1]):
+            best = (name, s)
+    if best is None or rr <= 0:
+        return None
+    return {"of": best[0], "scaled_pct": 100 * best[1] / rr, "constant_pct": 100 * own / rr}
+
+
+def misfit_of(col: np.ndarray, r: np.ndarray, others: list[tuple[str, np.ndarray]], bins: np.ndarray,
+              tol: float) -> dict | None:
+    """Whether a finding's correction ``col`` (N,) on a joint only mends the form of another finding
+    there: ``others`` (label, that finding's correction on the joint (N,)); ``bins`` (N,) the bins
+    of the joint's velocity (:func:`_axis_bins`). The other finding scaled freely per velocity bin
+    is its own form with a different velocity dependence (a sharper transition, a bump, a faster
+    rise). When that explains ``r`` (the joint's residual without ``col``'s correction) at least
+    (1 − ``tol``) as well as ``col`` does, ``col`` is that finding's form misfit: its ``label``,
+    with both shares of r's sum of squares; else None."""
+    rr = float(r @ r)
+    xx = float(col @ col)
+    if rr <= 0 or xx <= 0:
+        return None
+    own = float((r @ col) ** 2 / xx)
+    best = None
+    for name, c in others:
+        x = np.stack([c * (bins == b) for b in np.unique(bins)], axis=1)
+        x = x[:, np.any(x != 0, axis=0)]
+        if not x.size:
+            continue
+        beta, *_ = np.linalg.lstsq(x, r, rcond=None)
+        fit = x @ beta
+        s = float(fit @ fit)
+        if s >= (1 - tol) * own and (best is None or s > best[1]):
+            best = (name, s)
+    if best is None:
+        return None
+    return {"of": best[0], "scaled_pct": 100 * best[1] / rr, "own_pct": 100 * own / rr}
