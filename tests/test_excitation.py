@@ -346,6 +346,20 @@ def test_optimized_cond_beats_random_and_is_reproducible(ur5):
     assert first.convergence.iterations == settings.iterations and first.convergence.reason == "iterations"
 
 
+def test_perturbed_restart_keeps_the_best_and_is_validated(ur5):
+    # the restart from the best is one more start; the result is the best of all, so never worse
+    settings = ExcitationSettings(**{**SMALL, "starts": 2, "finalists": 1, "screen_iterations": 4}, seed=3,
+                                  workers=0)
+    without = optimize_excitation(ur5, replace(settings, hops=0))
+    with_hop = optimize_excitation(ur5, replace(settings, hops=1))
+    assert len(with_hop.history) == len(without.history) + 1
+    assert with_hop.history[:2] == without.history
+    assert min(with_hop.history) <= min(without.history)
+    assert check_trajectory(ur5, with_hop.trajectory, limits=with_hop.limits).ok
+    with pytest.raises(ValueError, match="hops"):
+        ExcitationSettings(hops=-1)
+
+
 @pytest.mark.parametrize("criterion", ["cond", "logdet"])
 @pytest.mark.parametrize("scale", [1.0, 1.4])  # feasible, and past the limits and collision clearance
 def test_objective_gradient_matches_finite_differences(ur5, criterion, scale):

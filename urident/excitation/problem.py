@@ -53,13 +53,15 @@ class ExcitationSettings:
     criterion: str = "cond"               # 'cond' (min cond Λ) or 'logdet' (max log det Λ)
     reduced: bool = False                 # the paper's reduced (33) or the full (52) base parameters
     seed: int = 0
-    candidates: int = 32                  # random feasible points scored before optimising
+    candidates: int = 64                  # random feasible points scored before optimising
     starts: int = 8                       # BFGS runs from the best candidates, screened ...
     screen_iterations: int = 60           # ... for this many iterations each, then
     finalists: int = 2                    # the best of them continued until converged
     iterations: int = 1000                # at most this many BFGS iterations per start in all
     tolerance: float = 2e-3               # converged: the objective fell less than this over
     window: int = 50                      # the last ``window`` iterations (2e-3: 0.1 % of cond Θ̄_B)
+    hops: int = 1                         # then restarts from the best, perturbed (basin hopping),
+    hop_scale: float = 0.3                # each coefficient scaled by 1 + hop_scale·N(0, 1)
     budget_s: float | None = None         # wall-time cap of the search [s]; None: until converged
     workers: int | None = None            # processes running starts (0: none); None: one per core, at most 2
     criterion_samples: int = 100
@@ -83,6 +85,8 @@ class ExcitationSettings:
         if min(self.candidates, self.starts, self.finalists, self.window, self.criterion_samples,
                self.collision_samples, self.limit_samples) < 1 or min(self.iterations, self.screen_iterations) < 0:
             raise ValueError("sample counts, candidates, starts, finalists and window must be positive")
+        if self.hops < 0 or not self.hop_scale >= 0:
+            raise ValueError(f"hops and hop_scale must not be negative, not {self.hops} and {self.hop_scale}")
         if not self.tolerance >= 0:
             raise ValueError(f"tolerance must not be negative, not {self.tolerance}")
         if self.budget_s is not None and not self.budget_s > 0:
