@@ -346,18 +346,22 @@ def test_optimized_cond_beats_random_and_is_reproducible(ur5):
     assert first.convergence.iterations == settings.iterations and first.convergence.reason == "iterations"
 
 
-def test_perturbed_restart_keeps_the_best_and_is_validated(ur5):
-    # the restart from the best is one more start; the result is the best of all, so never worse
+def test_perturbed_restarts_keep_the_best_and_stop_at_the_evaluation_cap(ur5):
+    # each round of restarts from the best adds its starts; the result is the best of all, so never
+    # worse; no round starts once the search used hop_evaluations
     settings = ExcitationSettings(**{**SMALL, "starts": 2, "finalists": 1, "screen_iterations": 4}, seed=3,
                                   workers=0)
     without = optimize_excitation(ur5, replace(settings, hops=0))
-    with_hop = optimize_excitation(ur5, replace(settings, hops=1))
-    assert len(with_hop.history) == len(without.history) + 1
-    assert with_hop.history[:2] == without.history
-    assert min(with_hop.history) <= min(without.history)
-    assert check_trajectory(ur5, with_hop.trajectory, limits=with_hop.limits).ok
-    with pytest.raises(ValueError, match="hops"):
-        ExcitationSettings(hops=-1)
+    with_hops = optimize_excitation(ur5, replace(settings, hops=2, hop_rounds=2))
+    assert len(with_hops.history) == len(without.history) + 4
+    assert with_hops.history[:2] == without.history
+    assert min(with_hops.history) <= min(without.history)
+    assert check_trajectory(ur5, with_hops.trajectory, limits=with_hops.limits).ok
+    capped = optimize_excitation(ur5, replace(settings, hops=2, hop_rounds=2, hop_evaluations=without.evaluations))
+    assert capped.history == without.history
+    for bad in ({"hops": -1}, {"hop_rounds": -1}, {"hop_evaluations": -1}):
+        with pytest.raises(ValueError, match="hops"):
+            ExcitationSettings(**bad)
 
 
 @pytest.mark.parametrize("criterion", ["cond", "logdet"])

@@ -306,11 +306,17 @@ def optimize_excitation(spec: RobotSpec, settings: ExcitationSettings | None = N
                 ended = {s.key: s for s in runner.run(going, settings.iterations, deadline)}
                 finalists = [ended.get(s.key, s) for s in finalists]
                 starts = [ended.get(s.key, s) for s in starts]
-            if settings.hops and (deadline is None or time.monotonic() < deadline):
-                hops = runner.run(_hops(problem, settings, min(finalists, key=lambda s: s.objective), len(starts)),
-                                  settings.iterations, deadline)
-                say(f"{len(hops)} perturbed restart(s) of the best: {', '.join(_show(settings, h.objective) for h in hops)}")
+            best = min(finalists, key=lambda s: s.objective)
+            rng = np.random.default_rng(settings.seed + _HOP_SEED_OFFSET)  # its own: the candidates stay as they were
+            for round_ in range(settings.hop_rounds if settings.hops else 0):
+                if ((deadline is not None and time.monotonic() >= deadline)
+                        or sum(s.evaluations for s in starts) >= settings.hop_evaluations):
+                    break
+                hops = runner.run(_hops(problem, settings, best, len(starts), rng), settings.iterations, deadline)
+                say(f"perturbed restarts of the best, round {round_ + 1}: "
+                    f"{', '.join(_show(settings, h.objective) for h in hops)}")
                 finalists, starts = finalists + hops, starts + hops
+                best = min([best] + hops, key=lambda s: s.objective)
         finally:
             runner.close()
 
@@ -345,11 +351,10 @@ def optimize_excitation(spec: RobotSpec, settings: ExcitationSettings | None = N
                             time.process_time() - cpu_start + (sum(s.cpu_s for s in starts) if workers else 0.0))
 
 
-def _hops(problem: ExcitationProblem, settings: ExcitationSettings, best: _Start, first_key: int) -> list[_Start]:
-    """``settings.hops`` new starts from the best converged point, each coefficient scaled by
-    1 + ``hop_scale``·N(0, 1) (a generator of its own, so the candidates stay as they were), then
-    projected onto the limits and shrunk until collision-free."""
-    rng = np.random.default_rng(settings.seed + _HOP_SEED_OFFSET)
+def _hops(problem: ExcitationProblem, settings: ExcitationSettings, best: _Start, first_key: int,
+          rng: np.random.Generator) -> list[_Start]:
+    """``settings.hops`` new starts from ``best``, each coefficient scaled by 1 + ``hop_scale``·N(0, 1),
+    then projected onto the limits and shrunk until collision-free."""
     x = best.x * (1.0 + settings.hop_scale * rng.standard_normal((settings.hops, *best.x.shape)))
     x = problem.shrink_to_collision_free(problem.project(x))
     return [_Start(first_key + i, x[i]) for i in range(settings.hops)]
