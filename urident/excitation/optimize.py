@@ -10,10 +10,12 @@ Method (measured against L-BFGS-B with forward differences and a smooth bound of
   continue (their BFGS matrix kept) until converged: the objective fell by less than
   ``tolerance`` over the last ``window`` iterations, or the gradient vanished, or ``iterations``.
   Local optima differ by tens of percent between starts, so screening many beats running few long.
-* Then ``hops`` restarts from the best converged point, each coefficient scaled by
-  1 + ``hop_scale``·N(0, 1) (basin hopping), run to convergence the same way; the best of all wins.
-  From a converged point a restart reached a lower basin far more often than a fresh start did
-  (docs/excitation.md), at 200–800 iterations.
+* Then rounds of ``hops`` restarts from the best converged point so far (one per worker), each
+  coefficient scaled by 1 + ``hop_scale``·N(0, 1) (basin hopping), run to convergence the same way;
+  at most ``hop_rounds``, and a round starts only while the search used fewer than
+  ``hop_evaluations`` objective-and-gradient evaluations (so its CPU time stays bounded). From a
+  converged point a restart reached a lower basin far more often than a fresh start did
+  (docs/excitation.md). The best of all wins.
 * Starts run in ``workers`` spawned processes with one BLAS thread each (``workers=0``, the
   default for a single start: in this process). On a shared machine, threaded BLAS made the small matrix products of one evaluation
   10-70 times slower (eigh of 52×52: 58 ms against 0.7 ms). Every start's result is independent of
