@@ -64,6 +64,8 @@ class ExcitationSettings:
     hop_rounds: int = 3                   # at most this many rounds, each from the best so far, each
     hop_scale: float = 0.3                # coefficient scaled by 1 + hop_scale·N(0, 1); a round starts
     hop_evaluations: int = 6000           # only while the search used fewer evaluations (CPU time)
+    polish: int = 2                       # then the best this many continue on the criterion on
+    polish_samples: int = 100             # this many samples (the search's is coarser: cheaper)
     budget_s: float | None = None         # wall-time cap of the search [s]; None: until converged
     workers: int | None = None            # processes running starts (0: none); None: one per core, at most 2
     criterion_samples: int = 60
@@ -87,6 +89,9 @@ class ExcitationSettings:
         if min(self.candidates, self.starts, self.finalists, self.window, self.criterion_samples,
                self.collision_samples, self.limit_samples) < 1 or min(self.iterations, self.screen_iterations) < 0:
             raise ValueError("sample counts, candidates, starts, finalists and window must be positive")
+        if self.polish < 0 or self.polish_samples < 1:
+            raise ValueError(f"polish must not be negative and polish_samples positive, not {self.polish} and "
+                             f"{self.polish_samples}")
         if min(self.hops, self.hop_rounds, self.hop_evaluations) < 0 or not self.hop_scale >= 0:
             raise ValueError(f"hops, hop_rounds, hop_evaluations and hop_scale must not be negative, not "
                              f"{self.hops}, {self.hop_rounds}, {self.hop_evaluations} and {self.hop_scale}")
