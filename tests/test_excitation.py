@@ -364,6 +364,23 @@ def test_perturbed_restarts_keep_the_best_and_stop_at_the_evaluation_cap(ur5):
             ExcitationSettings(**bad)
 
 
+def test_polish_continues_the_best_on_the_finer_criterion_grid(ur5):
+    # the search's criterion is on criterion_samples; the polish continues the best on polish_samples,
+    # and the reported coarse criterion and the iteration count include it
+    settings = ExcitationSettings(**{**SMALL, "starts": 2, "finalists": 1, "screen_iterations": 4, "hops": 0},
+                                  seed=3, workers=0)
+    plain = optimize_excitation(ur5, replace(settings, polish=0))
+    polished = optimize_excitation(ur5, replace(settings, polish=1, polish_samples=90))
+    assert plain.coarse_criteria.n_samples == settings.criterion_samples
+    assert polished.coarse_criteria.n_samples == 90
+    assert polished.convergence.iterations > plain.convergence.iterations
+    assert check_trajectory(ur5, polished.trajectory, limits=polished.limits).ok
+    with pytest.raises(ValueError, match="polish"):
+        ExcitationSettings(polish=-1)
+    with pytest.raises(ValueError, match="polish"):
+        ExcitationSettings(polish_samples=0)
+
+
 @pytest.mark.parametrize("criterion", ["cond", "logdet"])
 @pytest.mark.parametrize("scale", [1.0, 1.4])  # feasible, and past the limits and collision clearance
 def test_objective_gradient_matches_finite_differences(ur5, criterion, scale):
