@@ -252,10 +252,14 @@ class _Runner:
         self.progress.done = iterations
         self.progress.advance(0, f"iterations, best {self.show(best)}")
 
-    def run(self, starts: list[_Start], until: int, deadline: float | None, polish: bool = False) -> list[_Start]:
+    def run(self, starts: list[_Start], until: int | list[int], deadline: float | None,
+            polish: bool = False) -> list[_Start]:
+        """``until``: iterations of each start's ``history`` at most (one for all, or one per start)."""
+        untils = until if isinstance(until, list) else [until] * len(starts)
         if self.pool is None:
-            return [_advance(self.problems[polish], s, until, deadline, self.report) for s in starts]
-        futures: list[Future] = [self.pool.submit(_advance_in_worker, s, until, deadline, polish) for s in starts]
+            return [_advance(self.problems[polish], s, u, deadline, self.report) for s, u in zip(starts, untils)]
+        futures: list[Future] = [self.pool.submit(_advance_in_worker, s, u, deadline, polish)
+                                 for s, u in zip(starts, untils)]
         pending = set(futures)
         while pending:
             _, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
@@ -336,6 +340,7 @@ def optimize_excitation(spec: RobotSpec, settings: ExcitationSettings | None = N
                 finalists, starts = finalists + hops, starts + hops
                 best = min([best] + hops, key=lambda s: s.objective)
             if settings.polish and (deadline is None or time.monotonic() < deadline):
+                # at most min(_POLISH_ITERATIONS, iterations) more, on the finer grid
                 chosen = sorted(finalists, key=lambda s: s.objective)[: settings.polish]
                 ended = {s.key: s for s in runner.run(
                     [replace(s, history=(), reason="", done=False, prior_iterations=s.prior_iterations + len(s.history))
