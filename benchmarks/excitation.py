@@ -110,11 +110,13 @@ def bench(spec, model: str, args) -> dict:
               f"default / long = {entry['ratio']:.3f} (at {spec.controller_rate_hz:g} Hz)")
     if args.random:
         start = time.perf_counter()
-        conds = random_feasible_criteria(spec, replace(settings, criterion_samples=100), args.random, seed=args.seed + 1, base=base)
+        conds = random_feasible_criteria(spec, replace(settings, criterion_samples=100), args.random,
+                                         seed=args.seed + 1, base=base)
         median = float(np.median(conds))
         entry["random_median_cond"] = round(median, 3)
         print(f"  {args.random} random feasible trajectories ({time.perf_counter() - start:.1f} s): median "
-              f"cond(Θ̄_B) = {median:.4g} (best {conds.min():.4g}); the default is {median / d['cond_dense']:.1f}x lower at {spec.controller_rate_hz:g} Hz")
+              f"cond(Θ̄_B) = {median:.4g} (best {conds.min():.4g}); the default is {median / d['cond_dense']:.1f}x "
+              f"lower at {spec.controller_rate_hz:g} Hz")
     return entry
 
 

@@ -63,7 +63,7 @@ _POLISH_ITERATIONS = 300   # at most this many BFGS iterations of a polish on th
 class Convergence:
     """How the chosen start's search ended."""
 
-    iterations: int            # BFGS iterations in all (screening and continuation)
+    iterations: int            # BFGS iterations in all (screening, continuation and polish)
     reason: str                # 'converged', 'gradient', 'iterations', 'budget' or 'line search'
     gradient_norm: float       # 2-norm of the penalised objective's gradient at the end
     improvement: float         # fall of the objective over the last ``window`` iterations (nan: fewer)
@@ -252,14 +252,11 @@ class _Runner:
         self.progress.done = iterations
         self.progress.advance(0, f"iterations, best {self.show(best)}")
 
-    def run(self, starts: list[_Start], until: int | list[int], deadline: float | None,
-            polish: bool = False) -> list[_Start]:
-        """``until``: iterations of each start's ``history`` at most (one for all, or one per start)."""
-        untils = until if isinstance(until, list) else [until] * len(starts)
+    def run(self, starts: list[_Start], until: int, deadline: float | None, polish: bool = False) -> list[_Start]:
+        """Advance each start until its ``history`` has ``until`` iterations (on the polish's problem)."""
         if self.pool is None:
-            return [_advance(self.problems[polish], s, u, deadline, self.report) for s, u in zip(starts, untils)]
-        futures: list[Future] = [self.pool.submit(_advance_in_worker, s, u, deadline, polish)
-                                 for s, u in zip(starts, untils)]
+            return [_advance(self.problems[polish], s, until, deadline, self.report) for s in starts]
+        futures: list[Future] = [self.pool.submit(_advance_in_worker, s, until, deadline, polish) for s in starts]
         pending = set(futures)
         while pending:
             _, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
@@ -328,7 +325,7 @@ def optimize_excitation(spec: RobotSpec, settings: ExcitationSettings | None = N
                 finalists = [ended.get(s.key, s) for s in finalists]
                 starts = [ended.get(s.key, s) for s in starts]
             best = min(finalists, key=lambda s: s.objective)
-            rng = np.random.default_rng(settings.seed + _HOP_SEED_OFFSET)  # its own: the candidates stay as they were
+            rng = np.random.default_rng(settings.seed + _HOP_SEED_OFFSET)  # its own: the candidates stay
             rounds = settings.hop_rounds if settings.hops and settings.starts > 1 else 0  # a single start: alone
             for round_ in range(rounds):
                 if ((deadline is not None and time.monotonic() >= deadline)
@@ -395,7 +392,8 @@ def _hops(problem: ExcitationProblem, settings: ExcitationSettings, best: _Start
 def _convergence(settings: ExcitationSettings, start: _Start) -> Convergence:
     h = start.history
     improvement = h[-settings.window - 1] - h[-1] if len(h) > settings.window else float("nan")
-    return Convergence(start.prior_iterations + len(h), start.reason, start.gradient_norm, improvement, settings.window)
+    return Convergence(start.prior_iterations + len(h), start.reason, start.gradient_norm, improvement,
+                       settings.window)
 
 
 def _finalise(problem: ExcitationProblem, spec: RobotSpec, x: np.ndarray) -> tuple[FourierTrajectory, float]:
