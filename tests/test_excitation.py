@@ -316,7 +316,8 @@ def test_cli_excite_writes_a_checked_file(tmp_path, capsys):
                  "--iterations", "4", "--starts", "1", "--reduced", "--seed", "5", "--budget", "600", "--quiet"])
     assert code == 0
     printed = capsys.readouterr().out
-    assert "cond" in printed and "search: stopped at the iteration limit after 4 iterations" in printed
+    # 4 iterations on the search's grid, then the polish's 4 on the finer one
+    assert "cond" in printed and "search: stopped at the iteration limit after 8 iterations" in printed
     loaded = load_trajectory(out)
     assert loaded.trajectory.harmonics == 2 and loaded.trajectory.duration == 6.0
     assert loaded.optimization["seed"] == 5 and loaded.optimization["reduced"] is True
@@ -332,7 +333,8 @@ def test_cli_excite_writes_a_checked_file(tmp_path, capsys):
 def test_optimized_cond_beats_random_and_is_reproducible(ur5):
     # two starts screened, one continued: the result does not depend on where the starts run (two
     # worker processes, or this one)
-    settings = ExcitationSettings(**{**SMALL, "starts": 2, "finalists": 1, "screen_iterations": 4}, seed=7)
+    settings = ExcitationSettings(**{**SMALL, "starts": 2, "finalists": 1, "screen_iterations": 4, "hop_rounds": 1},
+                                  seed=7)
     first = optimize_excitation(ur5, replace(settings, workers=2))
     second = optimize_excitation(ur5, replace(settings, workers=0))
     np.testing.assert_array_equal(first.trajectory.a, second.trajectory.a)
@@ -343,7 +345,44 @@ def test_optimized_cond_beats_random_and_is_reproducible(ur5):
     random = random_feasible_criteria(ur5, settings, 30, seed=1)
     assert first.coarse_criteria.cond_theta < np.median(random)
     assert first.criteria.cond_lambda == pytest.approx(first.criteria.cond_theta ** 2)
-    assert first.convergence.iterations == settings.iterations and first.convergence.reason == "iterations"
+    # the search's iterations, then as many polishing on the finer grid
+    assert first.convergence.iterations == 2 * settings.iterations and first.convergence.reason == "iterations"
+
+
+def test_perturbed_restarts_keep_the_best_and_stop_at_the_evaluation_cap(ur5):
+    # each round of restarts from the best adds its starts; the result is the best of all, so never
+    # worse; no round starts once the search used hop_evaluations
+    settings = ExcitationSettings(**{**SMALL, "starts": 2, "finalists": 1, "screen_iterations": 4, "polish": 0},
+                                  seed=3, workers=0)
+    without = optimize_excitation(ur5, replace(settings, hops=0))
+    with_hops = optimize_excitation(ur5, replace(settings, hops=2, hop_rounds=2))
+    assert len(with_hops.history) == len(without.history) + 4
+    assert with_hops.history[:2] == without.history
+    assert min(with_hops.history) <= min(without.history)
+    assert check_trajectory(ur5, with_hops.trajectory, limits=with_hops.limits).ok
+    capped = optimize_excitation(ur5, replace(settings, hops=2, hop_rounds=2, hop_evaluations=without.evaluations))
+    assert capped.history == without.history
+    for bad in ({"hops": -1}, {"hop_rounds": -1}, {"hop_evaluations": -1}):
+        with pytest.raises(ValueError, match="hops"):
+            ExcitationSettings(**bad)
+
+
+def test_polish_continues_the_best_on_the_finer_criterion_grid(ur5):
+    # the search's criterion is on criterion_samples; the polish continues the best on polish_samples,
+    # (within the start's iteration limit), and the reported coarse criterion and the iteration count
+    # include it
+    settings = ExcitationSettings(**{**SMALL, "starts": 2, "finalists": 1, "screen_iterations": 4, "hops": 0,
+                                     "iterations": 40, "window": 5, "tolerance": 5e-2}, seed=3, workers=0)
+    plain = optimize_excitation(ur5, replace(settings, polish=0))
+    polished = optimize_excitation(ur5, replace(settings, polish=1, polish_samples=90))
+    assert plain.coarse_criteria.n_samples == settings.criterion_samples
+    assert polished.coarse_criteria.n_samples == 90
+    assert plain.convergence.iterations < polished.convergence.iterations <= 2 * settings.iterations
+    assert check_trajectory(ur5, polished.trajectory, limits=polished.limits).ok
+    with pytest.raises(ValueError, match="polish"):
+        ExcitationSettings(polish=-1)
+    with pytest.raises(ValueError, match="polish"):
+        ExcitationSettings(polish_samples=0)
 
 
 @pytest.mark.parametrize("criterion", ["cond", "logdet"])

@@ -116,7 +116,8 @@ class ExcitationDesign:
         s = self.settings
         out = {"criterion": s.criterion, "reduced": s.reduced, "seed": s.seed, "starts": s.starts,
                "screen_iterations": s.screen_iterations, "finalists": s.finalists, "iterations": s.iterations,
-               "tolerance": s.tolerance, "criterion_samples": s.criterion_samples,
+               "tolerance": s.tolerance, "hops": s.hops, "hop_rounds": s.hop_rounds, "polish": s.polish,
+               "criterion_samples": s.criterion_samples, "polish_samples": s.polish_samples,
                "collision_samples": s.collision_samples, "limit_samples": s.limit_samples, "periods": s.periods,
                "wall_s": round(self.wall_s, 3), "cpu_s": round(self.cpu_s, 3), "evaluations": self.evaluations,
                **self.convergence.as_dict()}

@@ -10,6 +10,14 @@ Method (measured against L-BFGS-B with forward differences and a smooth bound of
   continue (their BFGS matrix kept) until converged: the objective fell by less than
   ``tolerance`` over the last ``window`` iterations, or the gradient vanished, or ``iterations``.
   Local optima differ by tens of percent between starts, so screening many beats running few long.
+* Then rounds of ``hops`` restarts from the best converged point so far (one per worker), each
+  coefficient scaled by 1 + ``hop_scale``·N(0, 1) (basin hopping), run to convergence the same way;
+  at most ``hop_rounds``, and a round starts only while the search used fewer than
+  ``hop_evaluations`` objective-and-gradient evaluations (so its CPU time stays bounded). From a
+  converged point a restart reached a lower basin far more often than a fresh start did
+  (docs/excitation.md). None for a single start (``starts=1``: that start alone, quick). The best
+  of all is polished: the best ``polish`` continue on the criterion on ``polish_samples`` samples
+  (the search's ``criterion_samples`` are fewer: cheaper, but its optimum is 1–2.5 % worse there).
 * Starts run in ``workers`` spawned processes with one BLAS thread each (``workers=0``, the
   default for a single start: in this process). On a shared machine, threaded BLAS made the small matrix products of one evaluation
   10-70 times slower (eigh of 52×52: 58 ms against 0.7 ms). Every start's result is independent of
@@ -47,13 +55,15 @@ __all__ = ["ARM_JOINT_FRACTION", "PAPER_Q0", "Convergence", "ExcitationProblem",
 MAX_WORKERS = 2            # the starts gain nothing from more processes than the 2 cores we target
 _GRADIENT_TOL = 1e-8       # BFGS's own stop (|∇|∞); the window rule usually ends a start first
 _REPORT_EVERY = 10         # iterations between a worker's progress reports
+_HOP_SEED_OFFSET = 1000    # the perturbed restarts' generator: seed + this
+_POLISH_ITERATIONS = 300   # at most this many BFGS iterations of a polish on the finer criterion grid
 
 
 @dataclass(frozen=True)
 class Convergence:
     """How the chosen start's search ended."""
 
-    iterations: int            # BFGS iterations in all (screening and continuation)
+    iterations: int            # BFGS iterations in all (screening, continuation and polish)
     reason: str                # 'converged', 'gradient', 'iterations', 'budget' or 'line search'
     gradient_norm: float       # 2-norm of the penalised objective's gradient at the end
     improvement: float         # fall of the objective over the last ``window`` iterations (nan: fewer)
@@ -89,7 +99,7 @@ class Convergence:
 class ExcitationResult:
     trajectory: FourierTrajectory
     criteria: CriterionValues           # at the controller rate
-    coarse_criteria: CriterionValues    # on the optimiser's criterion grid
+    coarse_criteria: CriterionValues    # on the criterion grid of the polish (of the search without one)
     min_distance_m: float               # numpy capsule distance at the controller rate
     wall_s: float
     evaluations: int                    # objective-and-gradient evaluations, all starts
@@ -114,6 +124,7 @@ class _Start:
     evaluations: int = 0
     cpu_s: float = 0.0                  # CPU time spent on it [s]
     done: bool = False                  # converged: not worth continuing
+    prior_iterations: int = 0           # iterations before ``history`` began (on the coarser grid)
 
     @property
     def objective(self) -> float:
@@ -187,22 +198,32 @@ _WORKER: dict = {}
 
 
 def _init_worker(spec, settings, base, payload, queue) -> None:
-    _WORKER["problem"] = ExcitationProblem(spec, settings, base, payload)
+    _WORKER["problems"] = _problems(spec, settings, base, payload)
     _WORKER["queue"] = queue
 
 
-def _advance_in_worker(start: _Start, until: int, deadline: float | None) -> _Start:
+def _problems(spec, settings, base, payload) -> dict[bool, ExcitationProblem]:
+    """The search's problem (False) and the polish's on ``polish_samples`` (True)."""
+    problem = ExcitationProblem(spec, settings, base, payload)
+    fine = problem
+    if settings.polish and settings.polish_samples != settings.criterion_samples:
+        fine = ExcitationProblem(spec, replace(settings, criterion_samples=settings.polish_samples), base, payload)
+    return {False: problem, True: fine}
+
+
+def _advance_in_worker(start: _Start, until: int, deadline: float | None, polish: bool) -> _Start:
     queue = _WORKER["queue"]
-    return _advance(_WORKER["problem"], start, until, deadline,
+    return _advance(_WORKER["problems"][polish], start, until, deadline,
                     lambda key, it, value: queue.put((key, it, value)))
 
 
 class _Runner:
     """Runs :func:`_advance` on many starts, in worker processes or in this one."""
 
-    def __init__(self, problem: ExcitationProblem, payload, workers: int, progress: Progress,
+    def __init__(self, problems: dict[bool, ExcitationProblem], payload, workers: int, progress: Progress,
                  show: Callable[[float], str]):
-        self.problem, self.progress, self.show = problem, progress, show
+        self.problems, self.progress, self.show = problems, progress, show
+        problem = problems[False]
         self.latest: dict[int, tuple[int, float]] = {}
         self.pool = self.queue = None
         if workers >= 1:
@@ -231,10 +252,11 @@ class _Runner:
         self.progress.done = iterations
         self.progress.advance(0, f"iterations, best {self.show(best)}")
 
-    def run(self, starts: list[_Start], until: int, deadline: float | None) -> list[_Start]:
+    def run(self, starts: list[_Start], until: int, deadline: float | None, polish: bool = False) -> list[_Start]:
+        """Advance each start until its ``history`` has ``until`` iterations (on the polish's problem)."""
         if self.pool is None:
-            return [_advance(self.problem, s, until, deadline, self.report) for s in starts]
-        futures: list[Future] = [self.pool.submit(_advance_in_worker, s, until, deadline) for s in starts]
+            return [_advance(self.problems[polish], s, until, deadline, self.report) for s in starts]
+        futures: list[Future] = [self.pool.submit(_advance_in_worker, s, until, deadline, polish) for s in starts]
         pending = set(futures)
         while pending:
             _, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
@@ -269,7 +291,8 @@ def optimize_excitation(spec: RobotSpec, settings: ExcitationSettings | None = N
     say = progress or (lambda message: None)
     start_time, cpu_start = time.perf_counter(), time.process_time()
     deadline = None if settings.budget_s is None else time.monotonic() + settings.budget_s
-    problem = ExcitationProblem(spec, settings, base, payload)
+    problems = _problems(spec, settings, base, payload)
+    problem, fine = problems[False], problems[True]
     rng = np.random.default_rng(settings.seed)
 
     candidates = problem.shrink_to_collision_free(problem.random_coefficients(rng, settings.candidates))
@@ -284,7 +307,7 @@ def optimize_excitation(spec: RobotSpec, settings: ExcitationSettings | None = N
     workers = min(workers, len(starts))
     with Progress("urident excite: BFGS") as line:
         line.enabled = line.enabled and progress is not None
-        runner = _Runner(problem, payload, workers, line, lambda v: _show(settings, v))
+        runner = _Runner(problems, payload, workers, line, lambda v: _show(settings, v))
         try:
             screen = min(settings.screen_iterations, settings.iterations)
             if len(starts) > settings.finalists and screen > 0:
@@ -301,15 +324,37 @@ def optimize_excitation(spec: RobotSpec, settings: ExcitationSettings | None = N
                 ended = {s.key: s for s in runner.run(going, settings.iterations, deadline)}
                 finalists = [ended.get(s.key, s) for s in finalists]
                 starts = [ended.get(s.key, s) for s in starts]
+            best = min(finalists, key=lambda s: s.objective)
+            rng = np.random.default_rng(settings.seed + _HOP_SEED_OFFSET)  # its own: the candidates stay
+            rounds = settings.hop_rounds if settings.hops and settings.starts > 1 else 0  # a single start: alone
+            for round_ in range(rounds):
+                if ((deadline is not None and time.monotonic() >= deadline)
+                        or sum(s.evaluations for s in starts) >= settings.hop_evaluations):
+                    break
+                hops = runner.run(_hops(problem, settings, best, len(starts), rng), settings.iterations, deadline)
+                say(f"perturbed restarts of the best, round {round_ + 1}: "
+                    f"{', '.join(_show(settings, h.objective) for h in hops)}")
+                finalists, starts = finalists + hops, starts + hops
+                best = min([best] + hops, key=lambda s: s.objective)
+            if settings.polish and (deadline is None or time.monotonic() < deadline):
+                # at most min(_POLISH_ITERATIONS, iterations) more, on the finer grid
+                chosen = sorted(finalists, key=lambda s: s.objective)[: settings.polish]
+                ended = {s.key: s for s in runner.run(
+                    [replace(s, history=(), reason="", done=False, prior_iterations=s.prior_iterations + len(s.history))
+                     for s in chosen], min(_POLISH_ITERATIONS, settings.iterations), deadline, polish=True)}
+                say(f"the best {len(chosen)} polished on {settings.polish_samples} criterion samples: "
+                    f"{', '.join(_show(settings, s.objective) for s in ended.values())}")
+                finalists = [ended.get(s.key, s) for s in finalists]
+                starts = [ended.get(s.key, s) for s in starts]
         finally:
             runner.close()
 
     # Best by objective (the penalty includes the buffer, so a tiny one is harmless) after
     # projecting onto the limits; then make it exactly feasible at the controller rate.
     results = []
-    for s in finalists:
+    for s in finalists:  # on the polish's grid (the finer one)
         x = problem.project(s.x[None])
-        c_val, coll_val, tau_val = (float(v[0]) for v in problem.objective(x))
+        c_val, coll_val, tau_val = (float(v[0]) for v in fine.objective(x))
         results.append((c_val + PENALTY_WEIGHT * (coll_val + tau_val), s, x[0]))
         say(f"start {s.key + 1}: {_show(settings, c_val)}, penalty {coll_val + tau_val:.3g}, "
             + _convergence(settings, s).describe(settings.criterion))
@@ -319,7 +364,7 @@ def optimize_excitation(spec: RobotSpec, settings: ExcitationSettings | None = N
     trajectory, min_distance = _finalise(problem, spec, results[0][2])
     t = sample_times(settings.duration_s, spec.controller_rate_hz)
     dense = evaluate_criteria(spec, problem.base, *trajectory.evaluate(t))
-    coarse = evaluate_criteria(spec, problem.base, *trajectory.evaluate(problem.basis_criterion.t))
+    coarse = evaluate_criteria(spec, problem.base, *trajectory.evaluate(fine.basis_criterion.t))
     payload_cond = None
     if settings.for_payload:
         from urident.ident.payload import payload_condition
@@ -335,10 +380,20 @@ def optimize_excitation(spec: RobotSpec, settings: ExcitationSettings | None = N
                             time.process_time() - cpu_start + (sum(s.cpu_s for s in starts) if workers else 0.0))
 
 
+def _hops(problem: ExcitationProblem, settings: ExcitationSettings, best: _Start, first_key: int,
+          rng: np.random.Generator) -> list[_Start]:
+    """``settings.hops`` new starts from ``best``, each coefficient scaled by 1 + ``hop_scale``·N(0, 1),
+    then projected onto the limits and shrunk until collision-free."""
+    x = best.x * (1.0 + settings.hop_scale * rng.standard_normal((settings.hops, *best.x.shape)))
+    x = problem.shrink_to_collision_free(problem.project(x))
+    return [_Start(first_key + i, x[i]) for i in range(settings.hops)]
+
+
 def _convergence(settings: ExcitationSettings, start: _Start) -> Convergence:
     h = start.history
     improvement = h[-settings.window - 1] - h[-1] if len(h) > settings.window else float("nan")
-    return Convergence(len(h), start.reason, start.gradient_norm, improvement, settings.window)
+    return Convergence(start.prior_iterations + len(h), start.reason, start.gradient_norm, improvement,
+                       settings.window)
 
 
 def _finalise(problem: ExcitationProblem, spec: RobotSpec, x: np.ndarray) -> tuple[FourierTrajectory, float]:

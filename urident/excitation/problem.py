@@ -53,16 +53,22 @@ class ExcitationSettings:
     criterion: str = "cond"               # 'cond' (min cond Λ) or 'logdet' (max log det Λ)
     reduced: bool = False                 # the paper's reduced (33) or the full (52) base parameters
     seed: int = 0
-    candidates: int = 32                  # random feasible points scored before optimising
+    candidates: int = 64                  # random feasible points scored before optimising
     starts: int = 8                       # BFGS runs from the best candidates, screened ...
     screen_iterations: int = 60           # ... for this many iterations each, then
     finalists: int = 2                    # the best of them continued until converged
     iterations: int = 1000                # at most this many BFGS iterations per start in all
     tolerance: float = 2e-3               # converged: the objective fell less than this over
     window: int = 50                      # the last ``window`` iterations (2e-3: 0.1 % of cond Θ̄_B)
+    hops: int = 2                         # then restarts from the best, perturbed (basin hopping), in
+    hop_rounds: int = 3                   # at most this many rounds, each from the best so far, each
+    hop_scale: float = 0.3                # coefficient scaled by 1 + hop_scale·N(0, 1); a round starts
+    hop_evaluations: int = 6000           # only while the search used fewer evaluations (none: 1 start)
+    polish: int = 2                       # then the best this many continue on the criterion on
+    polish_samples: int = 100             # this many samples (the search's is coarser: cheaper)
     budget_s: float | None = None         # wall-time cap of the search [s]; None: until converged
     workers: int | None = None            # processes running starts (0: none); None: one per core, at most 2
-    criterion_samples: int = 100
+    criterion_samples: int = 60
     collision_samples: int = 400
     limit_samples: int = 800
     collision_buffer_m: float = 0.01      # extra distance while optimising on the coarse grid
@@ -83,6 +89,12 @@ class ExcitationSettings:
         if min(self.candidates, self.starts, self.finalists, self.window, self.criterion_samples,
                self.collision_samples, self.limit_samples) < 1 or min(self.iterations, self.screen_iterations) < 0:
             raise ValueError("sample counts, candidates, starts, finalists and window must be positive")
+        if self.polish < 0 or self.polish_samples < 1:
+            raise ValueError(f"polish must not be negative and polish_samples positive, not {self.polish} and "
+                             f"{self.polish_samples}")
+        if min(self.hops, self.hop_rounds, self.hop_evaluations) < 0 or not self.hop_scale >= 0:
+            raise ValueError(f"hops, hop_rounds, hop_evaluations and hop_scale must not be negative, not "
+                             f"{self.hops}, {self.hop_rounds}, {self.hop_evaluations} and {self.hop_scale}")
         if not self.tolerance >= 0:
             raise ValueError(f"tolerance must not be negative, not {self.tolerance}")
         if self.budget_s is not None and not self.budget_s > 0:
