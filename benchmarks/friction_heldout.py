@@ -41,16 +41,22 @@ FILES = {   # label: (file, log options)
 LOAD_TOOL_ROWS = (345, 1890)
 
 
-def held_out(data_dir: Path, presets, method: str = "consistent") -> dict:
+def held_out(data_dir: Path, models, method: str = "consistent", quiet: bool = False) -> dict:
+    """Per model, RMS [N·m] per file and joint. ``models``: preset names, or label → keyword
+    arguments of :func:`urident.identify` (``preset``, ``model``, ``weighting``)."""
     import urident as ur
 
+    if not isinstance(models, dict):
+        models = {p: {"preset": None if p == "paper" else p} for p in models}
     out = {}
-    for preset in presets:
+    for preset, kwargs in models.items():
         t0 = time.process_time()
         with redirect_stdout(io.StringIO()), redirect_stderr(io.StringIO()):
-            ident = ur.identify([data_dir / IDENT[0]], "ur10e", method, None if preset == "paper" else preset,
+            ident = ur.identify([data_dir / IDENT[0]], "ur10e", method, **kwargs,
                                 log_options={"format": "dynamic_calibration", "rows": IDENT[1]})
         row = {"identify_cpu_s": round(time.process_time() - t0, 1)}
+        if ident.selection:
+            row["selection"] = ident.selection
         for label, (name, options) in FILES.items():
             payload = None
             if label == "load":
@@ -63,6 +69,8 @@ def held_out(data_dir: Path, presets, method: str = "consistent") -> dict:
         row["mean_per_file"] = {k: round(float(np.mean(row[k])), 3) for k in FILES}
         row["mean"] = round(float(np.mean(list(row["mean_per_file"].values()))), 3)
         out[preset] = row
+        if quiet:
+            continue
         print(f"{preset:<10} " + "  ".join(f"{k} {v:.3f}" for k, v in row["mean_per_file"].items())
               + f"  mean {row['mean']:.3f}", flush=True)
         for k in FILES:
@@ -76,7 +84,11 @@ def main() -> None:
     ap.add_argument("--method", default="consistent")
     ap.add_argument("--data", default=str(DATA))
     args = ap.parse_args()
-    out = {"method": args.method, "models": held_out(Path(args.data), args.presets.split(","), args.method)}
+    models = held_out(Path(args.data), args.presets.split(","), args.method)
+    out = {"method": args.method, "models": models,
+           "mean_rms_nm": {k: v["mean"] for k, v in models.items()},
+           "per_joint_mean_rms_nm": {k: [round(float(np.mean([v[f][j] for f in FILES])), 3) for j in range(6)]
+                                     for k, v in models.items()}}
     print(json.dumps(out))
 
 
