@@ -92,28 +92,6 @@ def test_selection_finds_the_joint_with_asymmetric_friction_and_its_cv_is_exact(
     assert "J5: tanh;" in text and "tried per joint" in text and "sigmoid+offset eps=0.05" in text
 
 
-def test_terms_the_rigid_body_columns_explain_are_not_offered(spec, gaz_data):
-    """On 2 s of the run the arm's poses barely change, so the gravity columns of joint 3 mimic a
-    constant: an offset there would trade against the inertial parameters and is not offered."""
-    k = slice(0, 250)
-    short = Prepared(gaz_data.t[k], gaz_data.q[k], gaz_data.qd[k], gaz_data.qdd[k], gaz_data.tau[k],
-                     gaz_data.drive_gains)
-    # the partial R² of the offset on joint 3's rows, by plain least squares
-    m = ModelConfig(reduced=True, joint_extras=((), (), ("offset",), (), (), ()))
-    blocks = design_blocks(spec, m, short.q, short.qd, short.qdd, t=short.t)[:, 2, :]
-    kinds = np.array(column_kinds(spec, m))
-    friction = np.isin(kinds, ("viscous", "coulomb"))
-    rigid = ~friction & (kinds != "offset")
-    ssr = lambda a, y: np.sum((y - a @ np.linalg.lstsq(a, y, rcond=None)[0]) ** 2)  # noqa: E731
-    offset = blocks[:, kinds == "offset"][:, 0]
-    r2 = 1 - ssr(blocks[:, friction | rigid], offset) / ssr(blocks[:, friction], offset)
-    assert r2 > 0.9
-    sel = select_friction(spec, short, ModelConfig(reduced=True), folds=4, dahl_grid=(2e-4,))
-    assert "offset" in sel.joints[2].aliased and "offset" not in sel.model.joint_extras[2]
-    assert "not offered (aliased with the rigid-body columns): " in sel.text()
-    assert sel.to_dict()["joints"][2]["aliased"] == list(sel.joints[2].aliased)
-
-
 def thermal_run(spec, effect: bool):
     """A 10 s run whose joint temperatures drift up by 4-12 °C; with ``effect``, joint 3's friction
     follows them through the simulated controller's thermal_drift effect (viscous −2 %/°C,
