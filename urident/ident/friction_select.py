@@ -39,8 +39,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from urident.ident.design import (TEMPERATURE_FEATURES, ModelConfig, base_for, column_kinds, design_chunks,
-                                  parse_term, term_text)
+from urident.ident.design import TEMPERATURE_FEATURES, ModelConfig, base_for, design_chunks, parse_term, term_text
 from urident.ident.preprocess import Prepared
 from urident.ident.reduced import one_blas_thread
 
@@ -55,12 +54,6 @@ MIN_T = 2.0          # mean fold gain / its standard error (≈ 95 % one-sided w
 MIN_GAIN = 0.005     # relative held-out RMS decrease of the joint
 MAX_TERMS = 6        # per joint
 FOLDS = 5
-# a term is not offered on a joint whose rigid-body columns explain more than this share of it
-# (partial R², beyond the joint's friction columns): VIF > 10, the usual sign of collinearity.
-# Its coefficient would trade against the inertial parameters, which fits the poses at hand and
-# not others
-MAX_ALIASING = 0.9
-FRICTION_KINDS = ("viscous", "coulomb")
 
 
 @dataclass(frozen=True)
@@ -132,7 +125,6 @@ class JointChoice:
     steps: tuple[Step, ...]          # terms added on that state, in order
     rejected: Step | None            # the best term of the last round, which did not pass
     rms: float                       # held-out RMS of the joint in the chosen model [N·m]
-    aliased: tuple[str, ...] = ()    # terms not offered: the rigid-body columns explain them (MAX_ALIASING)
 
 
 @dataclass(frozen=True)
@@ -167,8 +159,7 @@ class FrictionSelection:
                                f"t {s.t_stat:.1f})" for s in c.steps) or "none"
             rej = ("" if c.rejected is None else
                    f"; best rejected: {c.rejected.term} ({-c.rejected.gain_pct:+.1f} %, t {c.rejected.t_stat:.1f})")
-            al = f"; not offered (aliased with the rigid-body columns): {', '.join(c.aliased)}" if c.aliased else ""
-            lines.append(f"  J{j + 1}: {c.coulomb}; {chosen}{rej}{al}; CV RMS {c.rms:.3f}")
+            lines.append(f"  J{j + 1}: {c.coulomb}; {chosen}{rej}; CV RMS {c.rms:.3f}")
         lines.append(f"  mean CV RMS {self.mean_rms_nm:.3f} N·m")
         return "\n".join(lines)
 
@@ -178,8 +169,7 @@ class FrictionSelection:
                 "bases": {b: [float(v) for v in r] for b, r in self.bases}, "mean_cv_rms_nm": self.mean_rms_nm,
                 "joints": [{"coulomb": c.coulomb, "terms": [s.term for s in c.steps], "cv_rms_nm": c.rms,
                             "steps": [vars(s) | {"gain_pct": s.gain_pct} for s in c.steps],
-                            "rejected": None if c.rejected is None else c.rejected.term,
-                            "aliased": list(c.aliased)}
+                            "rejected": None if c.rejected is None else c.rejected.term}
                            for c in self.joints]}
 
 
@@ -216,24 +206,6 @@ class _Factors:
                            for j in range(6)] for f in range(folds)]
         self.n_test = np.diff(edges)
         self.folds = folds
-        kinds = np.array(column_kinds(spec, replace(base, extras=(), joint_extras=(), joint_coulomb=())))
-        self.friction = np.flatnonzero(np.isin(kinds, FRICTION_KINDS))
-        self.rigid = np.flatnonzero(~np.isin(kinds, FRICTION_KINDS))
-        with one_blas_thread():
-            self.whole = [_tri(np.vstack([self.test[f][j] for f in range(folds)]), width) for j in range(6)]
-
-    def aliasing(self, j: int, sel: list[str], features: tuple[str, ...]) -> float:
-        """The largest share, over ``features``, of a feature column of joint j (all data) that
-        the rigid-body columns explain beyond the joint's friction columns and its extras ``sel``:
-        1 − SSR(x | friction, sel, rigid) / SSR(x | friction, sel) (a partial R²)."""
-        out = 0.0
-        own = np.r_[self.friction, self.nb + np.array([self.index[f] for f in sel], dtype=int)]
-        for x in features:
-            col = self.nb + self.index[x]
-            small = _tri(self.whole[j][:, np.r_[own, col]], len(own) + 1)[-1, -1] ** 2
-            full = _tri(self.whole[j][:, np.r_[own, self.rigid, col]], len(own) + len(self.rigid) + 1)[-1, -1] ** 2
-            out = max(out, 1.0 - full / small if small > 0 else 1.0)
-        return float(out)
 
     def cols(self, sel: list[str]) -> np.ndarray:
         return np.r_[np.arange(self.nb), self.nb + np.array([self.index[f] for f in sel], dtype=int),
@@ -311,15 +283,7 @@ def _select(fac: _Factors, terms: tuple[Term, ...]) -> tuple[list[list[str]], li
     rejected: list[Step | None] = [None] * 6
     open_ = [True] * 6
     n = np.sum(fac.n_test)
-    aliased: list[dict[str, float]] = [{} for _ in range(6)]
     while any(open_):
-        for j in range(6):
-            if open_[j]:
-                for t in terms:
-                    if t.label not in aliased[j] and not any(x in sels[j] for x in t.features):
-                        r2 = fac.aliasing(j, sels[j], t.features)
-                        if r2 > MAX_ALIASING:
-                            aliased[j][t.label] = r2
         base_sq = np.zeros((fac.folds, 6))
         cand: list[list[tuple[Term, np.ndarray]]] = [[] for _ in range(6)]
         for f in range(fac.folds):
@@ -329,7 +293,7 @@ def _select(fac: _Factors, terms: tuple[Term, ...]) -> tuple[list[list[str]], li
                     continue
                 base_sq[f, j] = fac.candidate(f, j, sels[j], ow[j], w[j])
                 for t in terms:
-                    if any(x in sels[j] for x in t.features) or t.label in aliased[j]:
+                    if any(x in sels[j] for x in t.features):
                         continue
                     if f == 0:
                         cand[j].append((t, np.zeros(fac.folds)))
@@ -361,8 +325,7 @@ def _select(fac: _Factors, terms: tuple[Term, ...]) -> tuple[list[list[str]], li
             steps[j].append(step)
     sq = fac.held_out(sels)
     rms = np.sqrt(sq.sum(axis=0) / n)
-    return sels, [(tuple(steps[j]), rejected[j], float(rms[j]), tuple(aliased[j])) for j in range(6)], \
-        sq / fac.n_test[:, None]
+    return sels, [(tuple(steps[j]), rejected[j], float(rms[j])) for j in range(6)], sq / fac.n_test[:, None]
 
 
 def _coulomb_states(rms: np.ndarray, mse: np.ndarray) -> np.ndarray:
@@ -421,8 +384,7 @@ def select_friction(spec, data: Prepared, model: ModelConfig | None = None, fold
                                         for j, b in enumerate(pick)))
     # the joints' states come from different runs: the model they make is scored as a whole
     final = cross_validate(spec, data, chosen, "joint", "ols", folds).rms_nm
-    joints = tuple(JointChoice(states[j], *results[b][3][j][:2], float(final[j]), results[b][3][j][3])
-                   for j, b in enumerate(pick))
+    joints = tuple(JointChoice(states[j], *results[b][3][j][:2], float(final[j])) for j, b in enumerate(pick))
     return FrictionSelection(chosen, joints, tuple((r[0], rms[k]) for k, r in enumerate(results)),
                              tuple(t.label for t in family(bases[0][1], t_ref is not None)), folds,
                              None if t_ref is None else tuple(float(v) for v in t_ref))
