@@ -16,6 +16,7 @@ The push run (the arm held at rest while pushed) is not free motion and is left 
 line per model and file, the per-file and mean RMS [N·m]; the last line is one JSON object.
 
     python benchmarks/friction_heldout.py [--presets paper,real-robot,auto] [--method consistent]
+                                          [--min-t T] [--folds K]
 """
 
 from __future__ import annotations
@@ -83,9 +84,19 @@ def main() -> None:
     ap.add_argument("--presets", default="paper,real-robot,auto")
     ap.add_argument("--method", default="consistent")
     ap.add_argument("--data", default=str(DATA))
+    ap.add_argument("--min-t", type=float, help="auto's t threshold instead of friction_select.MIN_T (a variant)")
+    ap.add_argument("--folds", type=int, help="auto's CV folds instead of presets.CV_FOLDS (a variant)")
     args = ap.parse_args()
+    if args.min_t is not None:
+        import urident.ident.friction_select as fs
+
+        fs.MIN_T = args.min_t
+    if args.folds is not None:
+        import urident.ident.presets as presets
+
+        presets.choose_on_data.__defaults__ = (args.folds,)
     models = held_out(Path(args.data), args.presets.split(","), args.method)
-    out = {"method": args.method, "models": models,
+    out = {"method": args.method, "min_t": args.min_t, "folds": args.folds, "models": models,
            "mean_rms_nm": {k: v["mean"] for k, v in models.items()},
            "per_joint_mean_rms_nm": {k: [round(float(np.mean([v[f][j] for f in FILES])), 3) for j in range(6)]
                                      for k, v in models.items()}}
