@@ -106,24 +106,36 @@ def published_params(spec, data, folds: int = 5) -> dict:
     n = len(data.t)
     rows = np.repeat(np.minimum(np.arange(n) * folds // n, folds - 1), 6)
     a = _design(spec, ModelConfig(), data, params, True)
-    first = a.shape[1] - 6                 # the Gaz columns, joint order
+    g0 = a.shape[1] - 6                      # the Gaz columns, joint order
     y = data.tau.reshape(-1)
+    train = [rows != f for f in range(folds)]
+    gram = [a[t].T @ a[t] for t in train]    # per fold; one column changes per trial
+    rhs = [a[t].T @ y[t] for t in train]
     for j in list(range(6)) * 2:
+        g = g0 + j
         best = None
         for phi2 in PHI2_GRID:
             for phi3 in PHI3_GRID:
-                a[:, first + j] = 0.0
-                a[j::6, first + j] = gaz(data.qd[:, j], phi2, float(phi3))
+                col = np.zeros(len(y))
+                col[j::6] = gaz(data.qd[:, j], phi2, float(phi3))
                 sse = 0.0
-                for f in range(folds):
-                    x, *_ = np.linalg.lstsq(a[rows != f], y[rows != f], rcond=None)
-                    e = (y[rows == f] - a[rows == f] @ x)[j::6]
+                for f, t in enumerate(train):
+                    gf, bf = gram[f].copy(), rhs[f].copy()
+                    v = a[t].T @ col[t]
+                    v[g] = col[t] @ col[t]
+                    gf[g, :], gf[:, g], bf[g] = v, v, col[t] @ y[t]
+                    x = np.linalg.lstsq(gf, bf, rcond=1e-12)[0]
+                    test = ~t
+                    pred = a[test] @ x + (col[test] - a[test][:, g]) * x[g]
+                    e = (y[test] - pred)[j::6]
                     sse += float(e @ e)
                 if best is None or sse < best[0]:
                     best = (sse, (phi2, float(phi3)))
         params[j] = best[1]
-        a[:, first + j] = 0.0
-        a[j::6, first + j] = gaz(data.qd[:, j], *best[1])
+        a[:, g] = 0.0
+        a[j::6, g] = gaz(data.qd[:, j], *best[1])
+        gram = [a[t].T @ a[t] for t in train]
+        rhs = [a[t].T @ y[t] for t in train]
     return params
 
 
