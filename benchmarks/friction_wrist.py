@@ -150,8 +150,7 @@ def main() -> None:
     from urident.ident import PreprocessConfig, prepare
     from urident.logs import load_log
     from urident.model import load_robot
-
-    from friction_select import with_extra
+    from urident.model.parameters import COULOMB
 
     out: dict = {"runs": {}}
     with tempfile.TemporaryDirectory() as tmp:
@@ -164,7 +163,7 @@ def main() -> None:
                     assert path.exists() or urident(["simulate", "--trajectory", str(ROOT / "experiments" / f"{robot}_ident.yaml"),
                                     "--out", str(path), "--effects", "realistic", "--seed", seed]) == 0
                 rec = load_log(path)
-                fc = spec.nominal_params[__import__("urident.model.parameters", fromlist=["COULOMB"]).COULOMB]
+                fc = spec.nominal_params[COULOMB]
                 tau = np.where(WRIST, extra_torque("gaz", rec.t, rec.qd, fc), 0.0)
                 rec = replace(rec, current=rec.current + tau / spec.drive_gains)
                 first, second = halves(rec)
