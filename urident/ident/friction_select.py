@@ -39,8 +39,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from urident.ident.design import (TEMPERATURE_FEATURES, ModelConfig, base_for, column_kinds, design_chunks,
-                                  parse_term, term_text)
+from urident.ident.design import TEMPERATURE_FEATURES, ModelConfig, base_for, design_chunks, parse_term, term_text
 from urident.ident.preprocess import Prepared
 from urident.ident.reduced import one_blas_thread
 
@@ -207,8 +206,6 @@ class _Factors:
                            for j in range(6)] for f in range(folds)]
         self.n_test = np.diff(edges)
         self.folds = folds
-        kinds = np.array(column_kinds(spec, replace(base, extras=(), joint_extras=(), joint_coulomb=())))
-        self.friction = np.flatnonzero(np.isin(kinds, ("viscous", "coulomb")))
 
     def cols(self, sel: list[str]) -> np.ndarray:
         return np.r_[np.arange(self.nb), self.nb + np.array([self.index[f] for f in sel], dtype=int),
@@ -241,11 +238,9 @@ class _Factors:
         w = 1.0 / np.maximum(std, 1e-9 * max(std.max(), 1e-300))
         return [_tri(np.vstack([w[i] * prof[i] for i in range(6) if i != j]), self.nb + 1) for j in range(6)], w
 
-    def candidate(self, f: int, j: int, sel: list[str], other: np.ndarray, weight: float,
-                  params: bool = False):
+    def candidate(self, f: int, j: int, sel: list[str], other: np.ndarray, weight: float) -> float:
         """Held-out squared error of joint j in fold f with its extras ``sel``, the other joints'
-        rows given as their weighted profiled factor ``other``, joint j's rows weighted ``weight``
-        (and the fitted parameters with ``params``)."""
+        rows given as their weighted profiled factor ``other``, joint j's rows weighted ``weight``."""
         c = self.cols(sel)
         k = len(sel)
         p = self.nb + k
@@ -255,22 +250,6 @@ class _Factors:
         pad[:, p] = other[:, self.nb]
         x = _solve(_tri(np.vstack([pad, mine]), p + 1))
         e = self.test[f][j][:, c] @ np.r_[x, -1.0]
-        return (float(e @ e), x) if params else float(e @ e)
-
-    def on_residual(self, f: int, j: int, sel: list[str], theta: np.ndarray) -> float:
-        """Held-out squared error of joint j in fold f with the rigid-body parameters fixed at
-        ``theta`` (nb,) and only the joint's friction columns and extras ``sel`` refitted: what
-        the extras explain without moving the rigid-body parameters."""
-        c = self.cols(sel)
-        free = np.r_[self.friction, np.arange(self.nb, len(c) - 1)]
-        fixed = np.setdiff1d(np.arange(self.nb), self.friction)
-        r = self.train[f][j][:, c]
-        target = r[:, -1] - r[:, fixed] @ theta[fixed]
-        x = _solve(_tri(np.column_stack([r[:, free], target]), len(free) + 1))
-        full = np.zeros(len(c) - 1)
-        full[fixed] = theta[fixed]
-        full[free] = x
-        e = self.test[f][j][:, c] @ np.r_[full, -1.0]
         return float(e @ e)
 
 
@@ -306,40 +285,34 @@ def _select(fac: _Factors, terms: tuple[Term, ...]) -> tuple[list[list[str]], li
     n = np.sum(fac.n_test)
     while any(open_):
         base_sq = np.zeros((fac.folds, 6))
-        base_res = np.zeros((fac.folds, 6))
-        cand: list[list[tuple[Term, np.ndarray, np.ndarray]]] = [[] for _ in range(6)]
+        cand: list[list[tuple[Term, np.ndarray]]] = [[] for _ in range(6)]
         for f in range(fac.folds):
             ow, w = fac.others(f, sels)
             for j in range(6):
                 if not open_[j]:
                     continue
-                base_sq[f, j], x0 = fac.candidate(f, j, sels[j], ow[j], w[j], params=True)
-                if RESIDUAL:
-                    base_res[f, j] = fac.on_residual(f, j, sels[j], x0[:fac.nb])
+                base_sq[f, j] = fac.candidate(f, j, sels[j], ow[j], w[j])
                 for t in terms:
                     if any(x in sels[j] for x in t.features):
                         continue
                     if f == 0:
-                        cand[j].append((t, np.zeros(fac.folds), np.zeros(fac.folds)))
+                        cand[j].append((t, np.zeros(fac.folds)))
                     entry = next(c for c in cand[j] if c[0] is t)
                     entry[1][f] = fac.candidate(f, j, sels[j] + list(t.features), ow[j], w[j])
-                    if RESIDUAL:
-                        entry[2][f] = fac.on_residual(f, j, sels[j] + list(t.features), x0[:fac.nb])
         for j in range(6):
             if not open_[j]:
                 continue
             before = np.sqrt(base_sq[:, j].sum() / n)
             best: tuple[float, Step] | None = None
             best_any: Step | None = None
-            for t, sq, res in cand[j]:
+            for t, sq in cand[j]:
                 d = (base_sq[:, j] - sq) / fac.n_test
                 se = np.std(d, ddof=1) / np.sqrt(len(d)) if len(d) > 1 else np.inf
                 t_stat = float(np.mean(d) / se) if se > 0 else (np.inf if np.mean(d) > 0 else 0.0)
                 step = Step(t.label, float(before), float(np.sqrt(sq.sum() / n)), t_stat)
                 if best_any is None or step.rms_after < best_any.rms_after:
                     best_any = step
-                if t_stat > MIN_T and step.gain_pct >= 100 * MIN_GAIN and (not RESIDUAL or _passes(
-                        (base_res[:, j] - res) / fac.n_test)):
+                if t_stat > MIN_T and step.gain_pct >= 100 * MIN_GAIN:
                     if best is None or step.rms_after < best[0]:
                         best = (step.rms_after, step)
             if best is None or len(steps[j]) >= MAX_TERMS:
@@ -353,15 +326,6 @@ def _select(fac: _Factors, terms: tuple[Term, ...]) -> tuple[list[list[str]], li
     sq = fac.held_out(sels)
     rms = np.sqrt(sq.sum(axis=0) / n)
     return sels, [(tuple(steps[j]), rejected[j], float(rms[j])) for j in range(6)], sq / fac.n_test[:, None]
-
-
-RESIDUAL = True
-
-
-def _passes(d: np.ndarray) -> bool:
-    """The paired fold gains ``d`` have a mean above MIN_T standard errors."""
-    se = np.std(d, ddof=1) / np.sqrt(len(d))
-    return bool(np.mean(d) > 0 and (se == 0 or np.mean(d) / se > MIN_T))
 
 
 def _coulomb_states(rms: np.ndarray, mse: np.ndarray) -> np.ndarray:
