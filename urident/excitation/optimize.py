@@ -18,7 +18,7 @@ Method (measured against L-BFGS-B with forward differences and a smooth bound of
   (docs/excitation.md). None for a single start (``starts=1``: that start alone, quick). The best
   of all is polished: the best ``polish`` continue on the criterion on ``polish_samples`` samples
   (the search's ``criterion_samples`` are fewer: cheaper, but its optimum is 1–2.5 % worse there).
-* Starts run in ``workers`` spawned processes with one BLAS thread each (``workers=0``, the
+* Starts run in ``workers`` spawned processes with one BLAS thread each, and so does this process (``workers=0``, the
   default for a single start: in this process). On a shared machine, threaded BLAS made the small matrix products of one evaluation
   10-70 times slower (eigh of 52×52: 58 ms against 0.7 ms). Every start's result is independent of
   the others and of the order they run in, so a seed gives one trajectory.
@@ -39,6 +39,7 @@ from typing import Callable
 import numpy as np
 import scipy.optimize
 
+from urident.blas import one_blas_thread
 from urident.excitation.constraints import Limits
 from urident.excitation.criteria import CriterionValues, evaluate_criteria
 from urident.excitation.fourier import FourierBasis, FourierTrajectory, sample_times
@@ -213,8 +214,9 @@ def _problems(spec, settings, base, payload) -> dict[bool, ExcitationProblem]:
 
 def _advance_in_worker(start: _Start, until: int, deadline: float | None, polish: bool) -> _Start:
     queue = _WORKER["queue"]
-    return _advance(_WORKER["problems"][polish], start, until, deadline,
-                    lambda key, it, value: queue.put((key, it, value)))
+    with one_blas_thread():
+        return _advance(_WORKER["problems"][polish], start, until, deadline,
+                        lambda key, it, value: queue.put((key, it, value)))
 
 
 class _Runner:
@@ -231,19 +233,8 @@ class _Runner:
 
             context = multiprocessing.get_context("spawn")
             self.queue = context.Queue()
-            saved = {k: os.environ.get(k) for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")}
-            os.environ.update({k: "1" for k in saved})  # the children read it at start: one BLAS thread each
-            try:
-                self.pool = ProcessPoolExecutor(
-                    workers, mp_context=context, initializer=_init_worker,
-                    initargs=(problem.spec, problem.settings, problem.base, payload, self.queue))
-                self.pool.submit(int, 0).result()  # start the workers while the variables are set
-            finally:
-                for k, v in saved.items():
-                    if v is None:
-                        os.environ.pop(k, None)
-                    else:
-                        os.environ[k] = v
+            self.pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_init_worker,
+                                            initargs=(problem.spec, problem.settings, problem.base, payload, self.queue))
 
     def report(self, key: int, iteration: int, value: float) -> None:
         self.latest[key] = (iteration, value)
@@ -287,6 +278,12 @@ def optimize_excitation(spec: RobotSpec, settings: ExcitationSettings | None = N
     the torque limits hold with it too. ``progress`` gets a message after each stage, and with it a
     progress line is written to a terminal's stderr while the starts run. The starts run in spawned
     processes: a script calling this needs the ``if __name__ == "__main__":`` guard."""
+    with one_blas_thread():  # this process's share too (see Method above)
+        return _optimize(spec, settings, progress, base, payload)
+
+
+def _optimize(spec: RobotSpec, settings: ExcitationSettings | None, progress: Callable[[str], None] | None,
+              base: BaseParameters | None, payload) -> ExcitationResult:
     settings = ExcitationSettings() if settings is None else settings
     say = progress or (lambda message: None)
     start_time, cpu_start = time.perf_counter(), time.process_time()

@@ -31,7 +31,7 @@ from urident.gap.scoring import Scorer
 from urident.gap.selection import select
 from urident.gap.significance import unit_gain_variants
 from urident.gap.where import describe_unexplained, describe_where
-from urident.ident.reduced import one_blas_thread
+from urident.blas import one_blas_thread
 
 
 #: A joint is at rest on the validation run when |q̇| < AT_REST_RAD_S on at least AT_REST_SHARE of

@@ -23,7 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from urident.ident.reduced import triangle, one_blas_thread
+from urident.blas import one_blas_thread
+from urident.ident.reduced import triangle
 
 
 def touched(f: np.ndarray) -> np.ndarray:

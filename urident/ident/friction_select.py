@@ -41,7 +41,7 @@ import numpy as np
 
 from urident.ident.design import TEMPERATURE_FEATURES, ModelConfig, base_for, design_chunks, parse_term, term_text
 from urident.ident.preprocess import Prepared
-from urident.ident.reduced import one_blas_thread
+from urident.blas import one_blas_thread
 
 DAHL_GRID = (5e-5, 7e-5, 1e-4, 1.5e-4, 2e-4, 3e-4, 5e-4)   # [rad] presliding distance of the base state
 # [rad/s] sigmoid smoothness ε = 2/φ2 (φ2 = 40, 10 s/rad); the sharp one is the tanh base. Not
