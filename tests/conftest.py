@@ -5,15 +5,10 @@ import pytest
 from parallel_groups import starts_a_controller
 
 
-@pytest.hookimpl(tryfirst=True)  # before xdist reads the groups
-def pytest_collection_modifyitems(config, items):
-    seen: dict[Path, bool] = {}
-    for item in items:
-        path = Path(item.fspath)
-        if path not in seen:
-            seen[path] = starts_a_controller(path)
-        if seen[path]:
-            item.add_marker(pytest.mark.xdist_group("controller"))
+def pytest_itemcollected(item):
+    # during collection, so the group is set before pytest-xdist reads it, whatever the plugin order
+    if starts_a_controller(Path(item.fspath)):
+        item.add_marker(pytest.mark.xdist_group("controller"))
 
 
 @pytest.fixture

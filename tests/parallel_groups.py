@@ -5,6 +5,7 @@ ports (one binds 0.0.0.0) and run in real time, so under pytest-xdist they share
 from __future__ import annotations
 
 import ast
+import functools
 import re
 from pathlib import Path
 
@@ -12,6 +13,7 @@ STARTS_A_CONTROLLER = re.compile(r'SimControllerProcess|run_session\(|run_trajec
                                  r'|urident (run|demo|sim-controller)\b|127\.0\.0\.|0\.0\.0\.0|localhost')
 
 
+@functools.lru_cache(maxsize=None)
 def starts_a_controller(path: Path) -> bool:
     """True when ``path``'s code (docstrings and comments aside) names a way to start a controller;
     a conservative reading: a mention in a string counts."""

@@ -54,3 +54,11 @@ def test_start_near_checks_the_robot_and_excludes_initial_q(files, capsys):  # n
     assert "trajectory is for robot 'ur5e', not 'ur5'" in capsys.readouterr().err
     assert main(["sim-controller", "--start-near", str(files["ur5e"]), "--initial-q=0,0,0,0,0,0"]) == 2
     assert "not allowed with argument --start-near" in capsys.readouterr().err
+
+
+def test_this_module_runs_in_the_controller_group(request):
+    """Under pytest-xdist's groups every module that starts a controller shares one worker
+    (tests/conftest.py); the group shows in the node id, or a plugin change lost it."""
+    if not request.config.getvalue("loadgroup"):
+        pytest.skip("not run by pytest-xdist with --dist loadgroup")
+    assert request.node.nodeid.endswith("@controller"), request.node.nodeid
