@@ -102,3 +102,12 @@ def test_summary_sets_the_injected_effects_beside_the_findings():
     assert "1 of 3 injected (effect, joint) named, 1 invented" in text
     assert "static_friction_ratio [1.3, 1.3]" in text and "static_friction_nm 0.8" in text
     assert "missed: 1" in text and "invented: load_friction on joint 3" in text
+
+    # a finding the diagnosis reports as confounded with the injected effect is not invented
+    alike = [{**findings[1], "effect": "asymmetric_coulomb", "joint": 4, "confounded_with": ["current_offset on joint 4"]}]
+    rows, invented = compare_effects(injected, findings[:1] + alike)
+    assert rows[1]["confounded"] == [4] and rows[1]["missed"] == [] and invented == []
+    text = summary(DemoResult(Path("x"), {"method": "ols", "e_n": 0.1, "rms_nm": [0.0] * 6},
+                              {**gap, "findings": findings[:1] + alike}, 1.0, "UR5e", injected))
+    assert "1 of 3 injected (effect, joint) named, 1 confounded with a finding, 0 invented" in text
+    assert "confounded with current_offset on joint 4" in text and "confounded with a finding: 4" in text

@@ -237,8 +237,10 @@ def summary(result: DemoResult) -> str:
     if not findings:
         lines.append("  no unmodelled effect found")
     for f in findings:
+        alike = f.get("confounded_with") or []
         lines.append(f"  joint {f['joint']}: {f['effect']:<22} RMS {f['rms_before_nm']:.3f} -> "
-                     f"{f['rms_after_nm']:.3f} N·m ({f['shrink_pct']:.1f} %), {f.get('regime', '')}")
+                     f"{f['rms_after_nm']:.3f} N·m ({f['shrink_pct']:.1f} %), {f.get('regime', '')}"
+                     + (f"; confounded with {', '.join(alike)}" if alike else ""))
     if result.injected:
         lines += injected_vs_found(result.injected, findings)
     lines.append("open the recordings with: rerun " + str(result.directory / "validation.rrd"))
@@ -247,19 +249,23 @@ def summary(result: DemoResult) -> str:
 
 def compare_effects(injected, findings) -> tuple[list[dict], list[dict]]:
     """Per injected effect (effects-file entries, joints 1-based): the joints a finding names it
-    on and those it misses; and the findings no injected effect explains (invented). A finding
-    names an effect on its ``joint``; an effect without joints (a payload) on any."""
+    on, those where a finding is confounded with it (the diagnosis says the data cannot tell the
+    two apart) and those it misses; and the findings no injected effect explains (invented). A
+    finding names an effect on its ``joint``; an effect without joints (a payload) on any."""
     rows = []
     claimed = set()
     for e in injected:
         joints = list(e.get("joints") or [])
-        named, missed = [], []
+        named, confounded, missed = [], [], []
         for j in joints or [None]:
             hit = [k for k, f in enumerate(findings) if f["effect"] == e["name"] and (j is None or f["joint"] == j)]
-            (named if hit else missed).append(j)
-            claimed.update(hit)
-        rows.append({"effect": e["name"], "joints": joints, "named": named, "missed": missed,
-                     "magnitude": {k: v for k, v in e.items() if k not in ("name", "joints")}})
+            alike = [k for k, f in enumerate(findings) if not hit and any(
+                a == e["name"] or (a.startswith(e["name"] + " on joint ") and (j is None or a.endswith(f" {j}")))
+                for a in f.get("confounded_with") or [])]
+            (named if hit else confounded if alike else missed).append(j)
+            claimed.update(hit + alike)
+        rows.append({"effect": e["name"], "joints": joints, "named": named, "confounded": confounded,
+                     "missed": missed, "magnitude": {k: v for k, v in e.items() if k not in ("name", "joints")}})
     invented = [f for k, f in enumerate(findings) if k not in claimed]
     return rows, invented
 
@@ -270,9 +276,10 @@ def injected_vs_found(injected, findings) -> list[str]:
     rows, invented = compare_effects(injected, findings)
     by_key = {(f["effect"], f["joint"]): f for f in findings}
     n_named = sum(len(r["named"]) for r in rows)
-    n_all = sum(len(r["named"]) + len(r["missed"]) for r in rows)
+    n_alike = sum(len(r["confounded"]) for r in rows)
+    n_all = sum(len(r["named"]) + len(r["confounded"]) + len(r["missed"]) for r in rows)
     lines = [f"injected ({EFFECTS_PRESET} preset) vs diagnosed: {n_named} of {n_all} injected (effect, joint) "
-             f"named, {len(invented)} invented"]
+             f"named, " + (f"{n_alike} confounded with a finding, " if n_alike else "") + f"{len(invented)} invented"]
     for r in rows:
         mag = ", ".join(f"{k} {_short(v)}" for k, v in r["magnitude"].items())
         where = "joints " + ",".join(map(str, r["joints"])) if r["joints"] else "arm"
@@ -281,8 +288,10 @@ def injected_vs_found(injected, findings) -> list[str]:
         if not r["joints"] and r["named"]:
             named = "; ".join(_found_text(f) for f in findings if f["effect"] == r["effect"])
         missed = ",".join("arm" if j is None else str(j) for j in r["missed"])
+        alike = ",".join("arm" if j is None else str(j) for j in r["confounded"])
         lines.append(f"  {r['effect']:<22} {where:<14} injected {mag}")
-        lines.append(f"  {'':<22} {'':<14} named: {named or 'none'}; missed: {missed or 'none'}")
+        lines.append(f"  {'':<22} {'':<14} named: {named or 'none'}; "
+                     + (f"confounded with a finding: {alike}; " if alike else "") + f"missed: {missed or 'none'}")
     for f in invented:
         lines.append(f"  invented: {_found_text(f)}")
     return lines
