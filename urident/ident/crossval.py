@@ -10,7 +10,7 @@ Only the identification data are used: validation logs must never drive these ch
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Iterable
 
 import numpy as np
