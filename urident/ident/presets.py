@@ -5,6 +5,9 @@ line's flags and the API's keywords alike) and what it leaves to the data (:func
 ``auto``: the reduced base set, per-joint weighting, a Dahl presliding Coulomb state (driven by
 ∫q̇, δ chosen by blocked CV) and each joint's friction terms chosen by blocked CV on the
 identification data given (:mod:`urident.ident.friction_select`): the same procedure on any arm.
+With those terms, the measured torque's lead over the motion is chosen by the same CV from
+:data:`TORQUE_LEAD_GRID` (:func:`urident.ident.crossval.select_torque_lead`; 8 ms on the UR10e run);
+``PresetChoice.data`` is then the data to fit, and the lead goes into the preprocessing recorded.
 
 ``paper``: full base set (52 parameters), r_v·q̇ + r_c·tanh(q̇/ε) friction with ε = 0.01 rad/s,
 plain least squares (Kovincic et al. 2019).
