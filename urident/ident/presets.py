@@ -51,7 +51,7 @@ CV (``resolve_preset``, or ``urident identify --dahl-rad auto``): 2e-4 rad on th
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Mapping
 
 from urident.errors import ConfigError
@@ -176,7 +176,7 @@ class PresetChoice:
     folds: int = CV_FOLDS
     torque_lead_s: float = 0.0                   # [s] chosen by CV (preset auto), PreprocessConfig's
     lead_scores: tuple[CVScore, ...] = ()        # the CV scores of TORQUE_LEAD_GRID, in its order
-    data: Prepared | None = None                 # the data to fit, with that lead (None: as given)
+    data: Prepared | None = field(default=None, repr=False, compare=False)   # the data to fit, with that lead (None: as given)
 
     def text(self) -> str:
         """What was chosen on the data, for the report ('' when nothing was)."""
