@@ -30,6 +30,7 @@ from urident.gap.results import GapResult, e_n, rms
 from urident.gap.scoring import Scorer
 from urident.gap.selection import select
 from urident.gap.significance import unit_gain_variants
+from urident.gap.structure import identification_only
 from urident.gap.where import describe_unexplained, describe_where
 from urident.blas import one_blas_thread
 
@@ -169,8 +170,11 @@ def _diagnose_prepared(spec, ident: GapSet, valid: GapSet, params, config: GapCo
     findings, steps, confounds, current = select(scorer, pool, block, config, ctx_v, spec)
     final_r = current.residual
     findings = claims(findings, final_r, ctx_v, config, current)
+    ident_only = identification_only(scorer, pool, list(current.ident) + list(current.cv), steps[-1],
+                                     config.min_shrink_pct)
     where["unexplained"] = describe_unexplained(ctx_v, final_r, min_shrink_pct=config.min_shrink_pct,
-                                                noise_ratio=config.cv_min_noise_ratio)   # beyond the catalogue
+                                                noise_ratio=config.cv_min_noise_ratio,
+                                                ident_structure=ident_only)   # beyond the catalogue
     for ctx in (ctx_i, ctx_v):
         ctx.cache.clear()              # the result keeps no design matrix (bounded memory)
     return GapResult(spec.name, model, ctx_i, ctx_v, e_n(r0), rms(r0), e_n(final_r), rms(final_r),
