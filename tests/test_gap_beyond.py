@@ -354,3 +354,26 @@ def test_structure_only_the_identification_logs_hold_is_listed_with_its_candidat
     assert describe_unexplained(ctx, white) == []
     out = describe_unexplained(ctx, white, ident_structure=got)
     assert [u["joint"] for u in out] == [6] and out[0]["structure"][0]["kind"] == "identification_logs"
+
+
+def test_a_stribeck_bump_within_an_offset_of_its_sign_is_that_levels_sharper_sign():
+    """A Coulomb level that differs by direction by 2c reads as an offset c plus a bump of c's sign
+    no taller than |c| (its sharper sign change): a Stribeck finding there is partial; one taller
+    than the offset, or of the other sign, stays its own."""
+    from types import SimpleNamespace
+
+    from urident.gap.diagnose import offset_transition
+
+    v = np.linspace(-0.3, 0.3, 2001)
+    col = np.exp(-(v / 0.01) ** 2) * np.tanh(v / 0.01)
+    offset = SimpleNamespace(effect="current_offset", joint=3, magnitude={"offset_nm": 1.9})
+    elsewhere = SimpleNamespace(effect="current_offset", joint=2, magnitude={"offset_nm": 1.9})
+
+    def stribeck(fs):
+        return SimpleNamespace(effect="stribeck", joint=3, magnitude={"extra_static_friction_nm": fs})
+    hit = offset_transition(stribeck(1.5), 1.5 * col, [elsewhere, offset])
+    assert hit and hit["offset_nm"] == 1.9 and "differs by direction" in hit["text"]
+    assert offset_transition(stribeck(1.5), 1.5 * col, [elsewhere]) is None
+    assert offset_transition(stribeck(8.0), 8.0 * col, [offset]) is None          # taller: its own
+    neg = SimpleNamespace(effect="current_offset", joint=3, magnitude={"offset_nm": -1.9})
+    assert offset_transition(stribeck(1.5), 1.5 * col, [neg]) is None             # other sign
