@@ -169,7 +169,7 @@ def _diagnose_prepared(spec, ident: GapSet, valid: GapSet, params, config: GapCo
     ctx_v = make_context(spec, model, valid, keep_design=True)
     n_valid = ctx_v.n
     events = find_events(ctx_v.residual, valid.run_time, valid.prepared.qd, valid.sample_rate,
-                         smooth_basis(ctx_v))
+                         smooth_basis(ctx_v, spec))
     if events:
         # contact, collisions, stalls: no effect of the arm; set aside from fits, scores and maps
         valid = without_events(valid, events)
