@@ -92,7 +92,7 @@ predicted vs actual shrink) and per effect class. Printed for the single-effect 
 
 Usage: ``python benchmarks/gap_blind.py [--scenarios 40] [--seed 1] [--robot ur10e] [--rate 200] [--duration 60] [--ident-duration S]
 [--effect-free | --multi] [--other-duration S] [--min-shrink PCT] [--first I] [--only EFFECT] [--rows-out FILE] [--from-rows FILE …]
-[--pair-timing] [--out-of-family]``. ``--out-of-family``: forms written from the physics literature, not
+[--pair-timing] [--out-of-family [--oof-forms F1,F2]]``. ``--out-of-family``: forms written from the physics literature, not
 from the candidates (``benchmarks/gap_out_of_family.py``; one scenario in nine effect-free), scored by
 joint found, class accepted (the closest catalogue explanation, a partial explanation or "beyond
 the catalogue" on the right joint), silent misses (the true form would cut >= 5 % of the joint's
@@ -735,6 +735,9 @@ def main(argv=None) -> int:
                     help="forms written from the physics literature, not the candidates' "
                          "(benchmarks/gap_out_of_family.py): joint found, class accepted, silent misses, "
                          "false alarms, shrink error")
+    ap.add_argument("--oof-forms", metavar="F1,F2", default=None,
+                    help="with --out-of-family: draw only these forms (default the eight of FORMS; "
+                         "the EXTRA_FORMS elastic_joint and box_payload only when named here)")
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args(argv)
     if args.pair_timing:
@@ -817,9 +820,17 @@ def main(argv=None) -> int:
 def _out_of_family(spec, args, config) -> int:
     import gap_out_of_family as oof
 
+    forms = oof.FORMS
+    if args.oof_forms:
+        forms = tuple(args.oof_forms.split(","))
+        unknown = [f for f in forms if f not in oof.FORMS + oof.EXTRA_FORMS]
+        if unknown:
+            print(f"gap_blind: --oof-forms: unknown form {unknown[0]!r} (known: "
+                  f"{', '.join(oof.FORMS + oof.EXTRA_FORMS)})", file=sys.stderr)
+            return 2
     rows = []
     for i in range(args.first, args.first + args.scenarios):
-        row = oof.run_scenario(spec, i, args.seed, args.rate, args.duration, config)
+        row = oof.run_scenario(spec, i, args.seed, args.rate, args.duration, config, forms)
         rows.append(row)
         found = ", ".join(f"{f['effect']}@{f['joint']} ({f['claim']}, {f['shrink_pct']:.1f} %)"
                           for f in row["found"]) or "none"
@@ -831,10 +842,12 @@ def _out_of_family(spec, args, config) -> int:
         else:
             verdict = "SILENT MISS" if row["silent_miss"] else ("ok" if row["class_accepted"] else "WRONG CLASS")
         err = "" if row.get("shrink_error_pts") is None else f" shrink error {row['shrink_error_pts']:.1f}"
+        if row["form"]:
+            err += f" (oracle {row['oracle_error_pts']:.1f})"
         print(f"[{i:3d}] truth {truth:38s} found {found:50s} beyond {row['beyond']} events {row['events']}{err} "
               f"{verdict}", flush=True)
     summary = oof.summarise(rows)
-    summary.update(seed=args.seed, robot=args.robot, rate_hz=args.rate, duration_s=args.duration)
+    summary.update(seed=args.seed, robot=args.robot, rate_hz=args.rate, duration_s=args.duration, forms=list(forms))
     print(json.dumps(summary))
     return 0
 

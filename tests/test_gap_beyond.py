@@ -314,3 +314,66 @@ def test_a_second_finding_that_only_mends_the_first_ones_form_is_no_cause_of_its
     assert hit and hit["of"] == "neighbour_load_friction"
     own = 0.5 * warm + noise                                              # a warm-up of its own
     assert misfit_of(warm, own, [("neighbour_load_friction", first)], bins, 0.05) is None
+
+
+def test_structure_only_the_identification_logs_hold_is_listed_with_its_candidate():
+    """An effect in every run that the validation motion barely excites (a cold start on a joint
+    the validation run hardly moves early) leaves the validation residual at the noise; the
+    identification logs still hold it: the joint is listed with what would shrink it there."""
+    from types import SimpleNamespace
+
+    from urident.gap.structure import describe, identification_only
+    from urident.gap.where import describe_unexplained
+
+    rng = np.random.default_rng(5)
+    r_id = rng.normal(0, 0.2, (3000, 6))
+    ss = np.sum(r_id ** 2, axis=0)
+    cold = SimpleNamespace(mode="ident", joint=5, name="thermal_drift on joint 6 [ident]")
+    tiny = SimpleNamespace(mode="ident", joint=1, name="stribeck on joint 2 [ident]")
+    taken = SimpleNamespace(mode="ident", joint=2, name="load_friction on joint 3 [ident]")
+    cv = SimpleNamespace(mode="cv", joint=4, name="current_offset on joint 5 [cv]")
+    drop = {id(cold): 0.3 * ss[5], id(tiny): 0.001 * ss[1], id(cv): 0.5 * ss[4]}
+
+    class Scorer:
+        ident = SimpleNamespace(residual=r_id, n=3000)
+
+        def ident_ss(self, cands):
+            return float(ss.sum() - sum(drop.get(id(c), 0.0) for c in cands if c is not taken))
+
+    last = [SimpleNamespace(candidate=cold, shrink_pct=1.2)]
+    got = identification_only(Scorer(), [cold, tiny, taken, cv], [taken], last, 3.0)
+    assert list(got) == [5]
+    assert got[5]["shrink_pct"] == pytest.approx(100 * (1 - np.sqrt(0.7)))
+    assert got[5]["validation_shrink_pct"] == 1.2 and "thermal_drift" in describe(got[5])
+    # listed beyond the catalogue though the validation residual on joint 6 is white noise
+    n = 4000
+    ctx = SimpleNamespace(q=np.zeros((n, 6)), qd=np.zeros((n, 6)), tau_hat=np.zeros((n, 6)),
+                          data=SimpleNamespace(run_time=np.arange(n) / FS, sample_rate=FS),
+                          sign=lambda: np.zeros((n, 6)))
+    white = rng.normal(0, 0.2, (n, 6))
+    assert describe_unexplained(ctx, white) == []
+    out = describe_unexplained(ctx, white, ident_structure=got)
+    assert [u["joint"] for u in out] == [6] and out[0]["structure"][0]["kind"] == "identification_logs"
+
+
+def test_a_stribeck_bump_within_an_offset_of_its_sign_is_that_levels_sharper_sign():
+    """A Coulomb level that differs by direction by 2c reads as an offset c plus a bump of c's sign
+    no taller than |c| (its sharper sign change): a Stribeck finding there is partial; one taller
+    than the offset, or of the other sign, stays its own."""
+    from types import SimpleNamespace
+
+    from urident.gap.diagnose import offset_transition
+
+    v = np.linspace(-0.3, 0.3, 2001)
+    col = np.exp(-(v / 0.01) ** 2) * np.tanh(v / 0.01)
+    offset = SimpleNamespace(effect="current_offset", joint=3, magnitude={"offset_nm": 1.9})
+    elsewhere = SimpleNamespace(effect="current_offset", joint=2, magnitude={"offset_nm": 1.9})
+
+    def stribeck(fs):
+        return SimpleNamespace(effect="stribeck", joint=3, magnitude={"extra_static_friction_nm": fs})
+    hit = offset_transition(stribeck(1.5), 1.5 * col, [elsewhere, offset])
+    assert hit and hit["offset_nm"] == 1.9 and "differs by direction" in hit["text"]
+    assert offset_transition(stribeck(1.5), 1.5 * col, [elsewhere]) is None
+    assert offset_transition(stribeck(8.0), 8.0 * col, [offset]) is None          # taller: its own
+    neg = SimpleNamespace(effect="current_offset", joint=3, magnitude={"offset_nm": -1.9})
+    assert offset_transition(stribeck(1.5), 1.5 * col, [neg]) is None             # other sign

@@ -149,3 +149,20 @@ def test_only_skips_the_scenarios_without_the_effect(gb, capsys):
     assert gb.main(["--multi", "--scenarios", "1", "--only", "current_delay"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--only current_delay" in err
+
+
+def test_an_off_axis_box_mounted_after_identification_is_named_a_payload_without_events(gb, robot):
+    """The out-of-family box payload (its own inertia, its centre off the flange axis, on the
+    validation and sealed runs only): named payload_error on the joint where it explains the most
+    torque, its shrink predicted, no event set aside."""
+    path = _PATH.parent / "gap_out_of_family.py"
+    spec = importlib.util.spec_from_file_location("gap_out_of_family", path)
+    oof = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(oof)
+    row = oof.run_scenario(robot, 1, 5, 100.0, 20.0,
+                           __import__("urident.gap", fromlist=["GapConfig"]).GapConfig(n_boot=300),
+                           forms=("box_payload",))
+    assert row["form"] == "box_payload" and row["matters"], row
+    assert row["joint_found"] and row["class_accepted"] and row["events"] == 0, row
+    assert row["found"][0]["effect"] == "payload_error"
+    assert row["shrink_error_pts"] < 10

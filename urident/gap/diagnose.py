@@ -30,6 +30,7 @@ from urident.gap.results import GapResult, e_n, rms
 from urident.gap.scoring import Scorer
 from urident.gap.selection import select
 from urident.gap.significance import unit_gain_variants
+from urident.gap.structure import identification_only
 from urident.gap.where import describe_unexplained, describe_where
 from urident.blas import one_blas_thread
 
@@ -66,6 +67,28 @@ def _label(c) -> str:
     return f"{c.effect} ({c.variant})" if c.variant else c.effect
 
 
+def offset_transition(f, own_j, findings) -> dict | None:
+    """Whether a Stribeck finding ``f`` (its correction ``own_j`` (N,) on its joint) can be the
+    transition of an offset found on the same joint: a Coulomb level that differs by direction by
+    2·c reads as an offset c plus c·(sharper sign − tanh(q̇/ε)), a bump of the offset's sign that
+    is nowhere taller than |c| (the sign's step is at most 1 above tanh). A Stribeck bump of the
+    offset's sign whose largest correction stays within |c| is then no static friction of its own
+    that the data could tell (the ``remains`` entry), else None."""
+    fs = f.magnitude.get("extra_static_friction_nm")
+    for g in findings:
+        if g.effect != "current_offset" or g.joint != f.joint or fs is None:
+            continue
+        c = g.magnitude["offset_nm"]
+        peak = float(np.max(np.abs(own_j))) if len(own_j) else 0.0
+        if c * fs > 0 and peak <= abs(c):
+            return {"axis": "the offset on the same joint", "offset_nm": float(c), "bump_peak_nm": peak,
+                    "text": (f"its bump near zero velocity (at most {peak:.3g} N·m) has the sign of the "
+                             f"offset on joint {f.joint} ({c:+.3g} N·m) and stays within it: together they "
+                             f"are a Coulomb level that differs by direction (by about {2 * c:+.3g} N·m) "
+                             f"and changes sign more sharply than tanh(q̇/ε), no static friction of its own")}
+    return None
+
+
 def claims(findings, final_r, ctx_v, config: GapConfig, current=None) -> list:
     """Each finding as a ``cause`` when its form fits, else ``partial`` with what its form leaves
     along its own axis (:func:`urident.gap.structure.form_left`) after all the findings. Also
@@ -97,6 +120,8 @@ def claims(findings, final_r, ctx_v, config: GapConfig, current=None) -> list:
                                  f"(scaled: {t['scaled_pct']:.1f} % of the sum of squares, as a constant "
                                  f"static friction: {t['constant_pct']:.1f} %): that friction changes "
                                  f"sign more sharply than tanh(q̇/ε), no static friction of its own")}
+            else:
+                left = offset_transition(f, own[:, j], findings)
         earlier = [(_label(c), x[:, j]) for g in out if g.joint == f.joint and g.effect != "payload_error"
                    for c, x in corr if _same(g, c) and c.joint == j]
         if not left and own is not None and earlier and f.effect != "payload_error":
@@ -144,7 +169,7 @@ def _diagnose_prepared(spec, ident: GapSet, valid: GapSet, params, config: GapCo
     ctx_v = make_context(spec, model, valid, keep_design=True)
     n_valid = ctx_v.n
     events = find_events(ctx_v.residual, valid.run_time, valid.prepared.qd, valid.sample_rate,
-                         smooth_basis(ctx_v))
+                         smooth_basis(ctx_v, spec))
     if events:
         # contact, collisions, stalls: no effect of the arm; set aside from fits, scores and maps
         valid = without_events(valid, events)
@@ -169,8 +194,11 @@ def _diagnose_prepared(spec, ident: GapSet, valid: GapSet, params, config: GapCo
     findings, steps, confounds, current = select(scorer, pool, block, config, ctx_v, spec)
     final_r = current.residual
     findings = claims(findings, final_r, ctx_v, config, current)
+    ident_only = identification_only(scorer, pool, list(current.ident) + list(current.cv), steps[-1],
+                                     config.min_shrink_pct)
     where["unexplained"] = describe_unexplained(ctx_v, final_r, min_shrink_pct=config.min_shrink_pct,
-                                                noise_ratio=config.cv_min_noise_ratio)   # beyond the catalogue
+                                                noise_ratio=config.cv_min_noise_ratio,
+                                                ident_structure=ident_only)   # beyond the catalogue
     for ctx in (ctx_i, ctx_v):
         ctx.cache.clear()              # the result keeps no design matrix (bounded memory)
     return GapResult(spec.name, model, ctx_i, ctx_v, e_n(r0), rms(r0), e_n(final_r), rms(final_r),

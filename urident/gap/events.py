@@ -146,13 +146,15 @@ BASIS_VS = (0.01, 0.03, 0.08)
 BASIS_DELTAS = (1e-4, 3e-3)
 
 
-def smooth_basis(ctx) -> np.ndarray:
+def smooth_basis(ctx, spec=None) -> np.ndarray:
     """(N, 6, k) per joint the columns of the smooth effects of a joint's own state that leave
     short bumps at a velocity reversal (Coulomb and Stribeck friction, a delay's dτ̂/dt, load
     friction, a gain), a step at each stop (friction held with the sign of the motion before:
     the Dahl state minus tanh) and a constant, from a :class:`urident.gap.residual.SetContext`: fitted per
     joint and taken out of the residual before events are looked for, so that such a bump
-    repeated at every reversal is never an event."""
+    repeated at every reversal is never an event. With the robot ``spec``, also the payload
+    columns of :func:`urident.ident.features.payload_columns` (a load mounted after the
+    identification run changes the gravity torque with the pose: smooth, no event)."""
     from urident.ident import features
 
     from urident.ident.friction import dahl_states, velocity_displacement
@@ -163,6 +165,12 @@ def smooth_basis(ctx) -> np.ndarray:
     p = ctx.data.prepared
     z = dahl_states(velocity_displacement(p.t, p.qd, p.segment), BASIS_DELTAS, p.segment)
     cols += [zd - s for zd in z]           # friction held at a stop with the sign of the move before
+    if spec is not None:
+        from urident.model import regressor_blocks
+
+        pay = features.payload_columns(regressor_blocks(spec, ctx.q, ctx.qd, ctx.qdd, ctx.friction_eps),
+                                       spec.tool_xyz)
+        cols += [pay[:, :, i] for i in range(pay.shape[2])]
     return np.stack(cols, axis=2)
 
 

@@ -77,7 +77,7 @@ UNEXPLAINED_NOISE_RATIO = 1.25
 
 def describe_unexplained(ctx: SetContext, residual: np.ndarray,
                          ratio: float = UNEXPLAINED_NOISE_RATIO, min_shrink_pct: float = 3.0,
-                         noise_ratio: float = 0.5) -> list[dict]:
+                         noise_ratio: float = 0.5, ident_structure: dict | None = None) -> list[dict]:
     """Joints whose residual ``residual`` (N, 6; validation, after the named effects) still carries
     structure: its RMS at least ``ratio`` times the white-noise torque, or a structure a white-noise
     test does not see (:func:`urident.gap.structure.joint_structure`: harmonics of the angle up to
@@ -85,7 +85,9 @@ def describe_unexplained(ctx: SetContext, residual: np.ndarray,
     time) that would shrink it by ``min_shrink_pct`` with a fitted part of ``noise_ratio`` × the
     noise. Each with its RMS, the noise, the structured part √(RMS² − σ²), the structures and the
     regimes of the maps where it concentrates, so that an effect beyond the catalogue is reported
-    instead of silently missing."""
+    instead of silently missing. ``ident_structure`` (0-based joint → entry of
+    :func:`urident.gap.structure.identification_only`): structure the identification logs hold on
+    a joint whose validation residual does not show it; such a joint is listed too."""
     from urident.gap.structure import describe, joint_structure
 
     r = np.asarray(residual, float)
@@ -97,6 +99,8 @@ def describe_unexplained(ctx: SetContext, residual: np.ndarray,
         if sigma[j] <= 0:
             continue
         found = joint_structure(j, r[:, j], ctx, float(sigma[j]), min_shrink_pct, noise_ratio)
+        if ident_structure and j in ident_structure:
+            found.append(dict(ident_structure[j]))
         if rms_j < ratio * sigma[j] and not found:
             continue
         jm = maps.joint_maps(r[:, j], ctx.qd[:, j], load[:, j], ctx.q[:, j], ctx.data.run_time)
