@@ -92,6 +92,35 @@ def test_selection_finds_the_joint_with_asymmetric_friction_and_its_cv_is_exact(
     assert "J5: tanh;" in text and "tried per joint" in text and "sigmoid+offset eps=0.05" in text
 
 
+@pytest.mark.parametrize("one_way", [True, False])
+def test_a_term_that_makes_the_directions_differ_needs_both_directions(spec, one_way):
+    """Joint 5's friction has an even part (1.5·tanh²(q̇/0.2), the sigmoid-with-offset's column).
+    Moving both ways, the sigmoid with offset is chosen; moving forwards only (its velocity shifted
+    above 0.02 rad/s), the same columns fit the forward samples as well, but what they predict
+    backwards is not scored by any sample, so no term with a part even in q̇ is taken."""
+    rec, qdd, _ = synthetic_recording(spec, duration_s=10.0, rate_hz=125.0, seed=21)
+    q, qd = rec.q.copy(), rec.qd.copy()
+    if one_way:
+        shift = 0.02 - qd[:, 4].min()
+        qd[:, 4] += shift
+        q[:, 4] += shift * rec.t
+    tau = design_blocks(spec, ModelConfig(), q, qd, qdd, t=rec.t) @ (base_for(spec, False).combination
+                                                                     @ spec.nominal_params)
+    tau[:, 4] += 1.5 * np.tanh(qd[:, 4] / 0.2) ** 2
+    tau += np.random.default_rng(4).normal(0, 0.1, tau.shape)
+    sel = select_friction(spec, Prepared(rec.t, q, qd, qdd, tau, spec.drive_gains), ModelConfig(reduced=True),
+                          folds=4, dahl_grid=(2e-4,))
+    j5 = {t.split("@")[0] for t in sel.model.joint_extras[4]}
+    if one_way:
+        assert not j5 & {"offset", "asym", "sigoffset"} and j5      # an odd term carries the shape
+        assert sel.joints[4].rejected.by_direction[1] == 0.0        # no backward sample to score it
+        line = next(x for x in sel.text().splitlines() if x.startswith("  J5:"))
+        assert "no gain on the samples of one direction" in line
+    else:
+        assert "sigoffset" in j5
+        assert min(sel.joints[4].steps[0].by_direction) > 0
+
+
 def thermal_run(spec, effect: bool):
     """A 10 s run whose joint temperatures drift up by 4-12 °C; with ``effect``, joint 3's friction
     follows them through the simulated controller's thermal_drift effect (viscous −2 %/°C,

@@ -168,6 +168,9 @@ def identify(logs, robot, method: str = "ols", preset: str | None = None, *, mod
         data = without_payload(spec, _payload(payload, spec), data)
     resolved = choose_on_data(spec, data, choice)
     model, weighting, selection = resolved.model, resolved.weighting, resolved.text()
+    if resolved.data is not None:   # auto paired the torque with later motion: fit and record it so
+        data = resolved.data
+        config = replace(config, torque_lead_s=round(config.torque_lead_s + resolved.torque_lead_s, 6))
     if sessions:
         from urident.ident.sessions import fit_sessions
 

@@ -10,7 +10,7 @@ Only the identification data are used: validation logs must never drive these ch
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Iterable
 
 import numpy as np
@@ -67,8 +67,6 @@ def select_dahl_rad(spec, data: Prepared, model: ModelConfig, grid: Iterable[flo
                     target: np.ndarray | None = None) -> tuple[ModelConfig, list[CVScore]]:
     """The Dahl presliding distance δ of ``model`` chosen from ``grid`` by blocked CV (lowest mean
     held-out RMS). Returns the model with that δ and the scores in grid order."""
-    from dataclasses import replace
-
     grid = [float(d) for d in grid]
     if not grid:
         raise ValueError("empty grid of Dahl distances")
@@ -76,3 +74,22 @@ def select_dahl_rad(spec, data: Prepared, model: ModelConfig, grid: Iterable[flo
               for d in grid]
     best = min(range(len(grid)), key=lambda k: scores[k].mean_rms_nm)
     return replace(model, dahl_rad=grid[best]), scores
+
+
+
+def select_torque_lead(spec, data: Prepared, model: ModelConfig, grid: Iterable[float],
+                       weighting: str = "none", method: str = "ols", folds: int = 5,
+                       min_gain: float = 0.005) -> tuple[float, list[CVScore]]:
+    """How far the measured torque leads the motion [s], chosen from ``grid`` by blocked CV of
+    ``model`` (:func:`urident.ident.preprocess.with_torque_lead`; always scored on the measured
+    torques): the lowest mean held-out RMS, and 0 unless that is at least ``min_gain`` (relative)
+    below the model's without a lead. Returns the lead and the scores in grid order."""
+    from urident.ident.preprocess import with_torque_lead
+
+    grid = [float(s) for s in grid]
+    if 0.0 not in grid:
+        raise ValueError("the grid of torque leads must hold 0")
+    scores = [cross_validate(spec, with_torque_lead(data, s), model, weighting, method, folds) for s in grid]
+    best = min(range(len(grid)), key=lambda k: scores[k].mean_rms_nm)
+    zero = scores[grid.index(0.0)].mean_rms_nm
+    return (grid[best] if scores[best].mean_rms_nm <= (1 - min_gain) * zero else 0.0), scores

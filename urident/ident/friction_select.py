@@ -28,7 +28,12 @@ A term joins joint j when the per-fold decrease of joint j's held-out mean squar
 above :data:`MIN_T` standard errors of its fold-to-fold spread (a paired test over the folds:
 a fold's difficulty cancels, what stays is whether the term helps consistently) and lowers
 joint j's held-out RMS by at least :data:`MIN_GAIN` (a gain below the noise of the choice itself
-is not worth a parameter). Of the terms that pass, the largest gain is taken. The Coulomb state
+is not worth a parameter). A term that makes the two directions of motion differ
+(:data:`DIRECTIONAL`: offset, |z|, the sigmoid's offset column) must also lower joint j's held-out
+squared error on the held-out samples of each direction (q̇_j ≥ 0 and q̇_j < 0, summed over the
+folds): where the joint moved one way only, such a term is not told apart from the odd friction
+columns, and what it predicts for the other way is a guess. Of the terms that pass, the largest
+gain is taken. The Coulomb state
 with the lowest mean held-out RMS over joints is shared; a joint takes another (its own best,
 with the terms selected on it) only when that passes the same rule against the shared one.
 """
@@ -54,6 +59,9 @@ MIN_T = 2.0          # mean fold gain / its standard error (≈ 95 % one-sided w
 MIN_GAIN = 0.005     # relative held-out RMS decrease of the joint
 MAX_TERMS = 6        # per joint
 FOLDS = 5
+# features with a part that is the same in both directions of motion: they set the difference
+# between the directions, which only samples of both directions can score
+DIRECTIONAL = ("offset", "asym", "sigoffset")
 
 
 @dataclass(frozen=True)
@@ -107,12 +115,15 @@ def _same_as_coulomb(base: ModelConfig, feature: str) -> bool:
 
 @dataclass(frozen=True)
 class Step:
-    """One term added to a joint: held-out RMS of the joint before and after [N·m], t statistic."""
+    """One term added to a joint: held-out RMS of the joint before and after [N·m], t statistic;
+    for a term of :data:`DIRECTIONAL` features, the decrease of the joint's held-out squared error
+    on the samples of each direction (q̇ ≥ 0, q̇ < 0) [N²·m²], else None."""
 
     term: str
     rms_before: float
     rms_after: float
     t_stat: float
+    by_direction: tuple[float, float] | None = None
 
     @property
     def gain_pct(self) -> float:
@@ -146,7 +157,8 @@ class FrictionSelection:
     def text(self) -> str:
         lines = [f"friction terms chosen per joint by {self.folds}-fold blocked CV on the identification "
                  f"data (a term kept when its fold gains have mean > {MIN_T:g} standard errors and the "
-                 f"joint's held-out RMS falls >= {100 * MIN_GAIN:g} %)",
+                 f"joint's held-out RMS falls >= {100 * MIN_GAIN:g} %; a term that makes the two directions "
+                 "of motion differ also lowers the held-out error of each direction's samples)",
                  f"  terms tried per joint: {'; '.join(self.family)}",
                  "  joint temperature: " + ("not offered: the logs carry no joint temperature" if self.t_ref is None
                                             else "offered, T_ref [°C] per joint (the data's mean): "
@@ -158,7 +170,9 @@ class FrictionSelection:
             chosen = ", ".join(f"{s.term} ({s.rms_before:.3f} -> {s.rms_after:.3f}, -{s.gain_pct:.1f} %, "
                                f"t {s.t_stat:.1f})" for s in c.steps) or "none"
             rej = ("" if c.rejected is None else
-                   f"; best rejected: {c.rejected.term} ({-c.rejected.gain_pct:+.1f} %, t {c.rejected.t_stat:.1f})")
+                   f"; best rejected: {c.rejected.term} ({-c.rejected.gain_pct:+.1f} %, t {c.rejected.t_stat:.1f}"
+                   + ("" if c.rejected.by_direction is None or min(c.rejected.by_direction) > 0 else
+                      ", no gain on the samples of one direction") + ")")
             lines.append(f"  J{j + 1}: {c.coulomb}; {chosen}{rej}; CV RMS {c.rms:.3f}")
         lines.append(f"  mean CV RMS {self.mean_rms_nm:.3f} N·m")
         return "\n".join(lines)
@@ -168,7 +182,8 @@ class FrictionSelection:
                 "temperature_ref_c": None if self.t_ref is None else list(self.t_ref),
                 "bases": {b: [float(v) for v in r] for b, r in self.bases}, "mean_cv_rms_nm": self.mean_rms_nm,
                 "joints": [{"coulomb": c.coulomb, "terms": [s.term for s in c.steps], "cv_rms_nm": c.rms,
-                            "steps": [vars(s) | {"gain_pct": s.gain_pct} for s in c.steps],
+                            "steps": [vars(s) | {"gain_pct": s.gain_pct, "by_direction": None if s.by_direction is None
+                                                  else list(s.by_direction)} for s in c.steps],
                             "rejected": None if c.rejected is None else c.rejected.term}
                            for c in self.joints]}
 
@@ -189,6 +204,8 @@ class _Factors:
         edges = np.linspace(0, n, folds + 1).astype(int)
         width = nb + m + 1
         blocks_r = [[np.zeros((0, width)) for _ in range(6)] for _ in range(folds)]
+        # the held-out rows of each joint split by its direction of motion (q̇_j ≥ 0, q̇_j < 0)
+        blocks_d = [[[np.zeros((0, width)) for _ in range(2)] for _ in range(6)] for _ in range(folds)]
         with one_blas_thread():
             for a, b, blocks in design_chunks(spec, sup, data.q, data.qd, data.qdd, data.segment, data.t,
                                               chunk=4096, temperature=data.temperature):
@@ -201,7 +218,11 @@ class _Factors:
                         cols = np.r_[np.arange(nb), nb + j * m + np.arange(m)]
                         rows = np.hstack([part[:, j, cols], data.tau[lo:hi, j, None]])
                         blocks_r[f][j] = _tri(np.vstack([blocks_r[f][j], rows]), width)
+                        back = data.qd[lo:hi, j] < 0
+                        for d, sel in enumerate((~back, back)):
+                            blocks_d[f][j][d] = _tri(np.vstack([blocks_d[f][j][d], rows[sel]]), width)
             self.test = blocks_r
+            self.test_by_direction = blocks_d
             self.train = [[_tri(np.vstack([blocks_r[g][j] for g in range(folds) if g != f]), width)
                            for j in range(6)] for f in range(folds)]
         self.n_test = np.diff(edges)
@@ -225,7 +246,7 @@ class _Factors:
         for f in range(self.folds):
             others, w = self.others(f, sels)
             for j in range(6):
-                out[f, j] = self.candidate(f, j, sels[j], others[j], w[j])
+                out[f, j] = self.candidate(f, j, sels[j], others[j], w[j])[0]
         return out
 
     def others(self, f: int, sels: list[list[str]]) -> tuple[list[np.ndarray], np.ndarray]:
@@ -238,9 +259,10 @@ class _Factors:
         w = 1.0 / np.maximum(std, 1e-9 * max(std.max(), 1e-300))
         return [_tri(np.vstack([w[i] * prof[i] for i in range(6) if i != j]), self.nb + 1) for j in range(6)], w
 
-    def candidate(self, f: int, j: int, sel: list[str], other: np.ndarray, weight: float) -> float:
+    def candidate(self, f: int, j: int, sel: list[str], other: np.ndarray, weight: float) -> tuple[float, np.ndarray]:
         """Held-out squared error of joint j in fold f with its extras ``sel``, the other joints'
-        rows given as their weighted profiled factor ``other``, joint j's rows weighted ``weight``."""
+        rows given as their weighted profiled factor ``other``, joint j's rows weighted ``weight``;
+        and (2,) that of its held-out samples with q̇_j ≥ 0 and with q̇_j < 0."""
         c = self.cols(sel)
         k = len(sel)
         p = self.nb + k
@@ -248,9 +270,10 @@ class _Factors:
         pad = np.zeros((other.shape[0], p + 1))
         pad[:, :self.nb] = other[:, :self.nb]
         pad[:, p] = other[:, self.nb]
-        x = _solve(_tri(np.vstack([pad, mine]), p + 1))
-        e = self.test[f][j][:, c] @ np.r_[x, -1.0]
-        return float(e @ e)
+        x = np.r_[_solve(_tri(np.vstack([pad, mine]), p + 1)), -1.0]
+        e = self.test[f][j][:, c] @ x
+        by_direction = [self.test_by_direction[f][j][d][:, c] @ x for d in range(2)]
+        return float(e @ e), np.array([float(v @ v) for v in by_direction])
 
 
 def _tri(a: np.ndarray, n: int) -> np.ndarray:
@@ -285,34 +308,40 @@ def _select(fac: _Factors, terms: tuple[Term, ...]) -> tuple[list[list[str]], li
     n = np.sum(fac.n_test)
     while any(open_):
         base_sq = np.zeros((fac.folds, 6))
-        cand: list[list[tuple[Term, np.ndarray]]] = [[] for _ in range(6)]
+        base_dir = np.zeros((6, 2))      # per joint, held-out squared error by direction, summed over folds
+        cand: list[list[tuple[Term, np.ndarray, np.ndarray]]] = [[] for _ in range(6)]
         for f in range(fac.folds):
             ow, w = fac.others(f, sels)
             for j in range(6):
                 if not open_[j]:
                     continue
-                base_sq[f, j] = fac.candidate(f, j, sels[j], ow[j], w[j])
+                base_sq[f, j], by_dir = fac.candidate(f, j, sels[j], ow[j], w[j])
+                base_dir[j] += by_dir
                 for t in terms:
                     if any(x in sels[j] for x in t.features):
                         continue
                     if f == 0:
-                        cand[j].append((t, np.zeros(fac.folds)))
+                        cand[j].append((t, np.zeros(fac.folds), np.zeros(2)))
                     entry = next(c for c in cand[j] if c[0] is t)
-                    entry[1][f] = fac.candidate(f, j, sels[j] + list(t.features), ow[j], w[j])
+                    entry[1][f], by_dir = fac.candidate(f, j, sels[j] + list(t.features), ow[j], w[j])
+                    entry[2][:] += by_dir
         for j in range(6):
             if not open_[j]:
                 continue
             before = np.sqrt(base_sq[:, j].sum() / n)
             best: tuple[float, Step] | None = None
             best_any: Step | None = None
-            for t, sq in cand[j]:
+            for t, sq, sq_dir in cand[j]:
                 d = (base_sq[:, j] - sq) / fac.n_test
                 se = np.std(d, ddof=1) / np.sqrt(len(d)) if len(d) > 1 else np.inf
                 t_stat = float(np.mean(d) / se) if se > 0 else (np.inf if np.mean(d) > 0 else 0.0)
-                step = Step(t.label, float(before), float(np.sqrt(sq.sum() / n)), t_stat)
+                by_dir = (tuple(float(v) for v in base_dir[j] - sq_dir)
+                          if any(parse_term(x)[0] in DIRECTIONAL for x in t.features
+                                 if x not in TEMPERATURE_FEATURES) else None)
+                step = Step(t.label, float(before), float(np.sqrt(sq.sum() / n)), t_stat, by_dir)
                 if best_any is None or step.rms_after < best_any.rms_after:
                     best_any = step
-                if t_stat > MIN_T and step.gain_pct >= 100 * MIN_GAIN:
+                if t_stat > MIN_T and step.gain_pct >= 100 * MIN_GAIN and (by_dir is None or min(by_dir) > 0):
                     if best is None or step.rms_after < best[0]:
                         best = (step.rms_after, step)
             if best is None or len(steps[j]) >= MAX_TERMS:

@@ -5,6 +5,9 @@ line's flags and the API's keywords alike) and what it leaves to the data (:func
 ``auto``: the reduced base set, per-joint weighting, a Dahl presliding Coulomb state (driven by
 ∫q̇, δ chosen by blocked CV) and each joint's friction terms chosen by blocked CV on the
 identification data given (:mod:`urident.ident.friction_select`): the same procedure on any arm.
+With those terms, the measured torque's lead over the motion is chosen by the same CV from
+:data:`TORQUE_LEAD_GRID` (:func:`urident.ident.crossval.select_torque_lead`; 8 ms on the UR10e run);
+``PresetChoice.data`` is then the data to fit, and the lead goes into the preprocessing recorded.
 
 ``paper``: full base set (52 parameters), r_v·q̇ + r_c·tanh(q̇/ε) friction with ε = 0.01 rad/s,
 plain least squares (Kovincic et al. 2019).
@@ -48,16 +51,19 @@ CV (``resolve_preset``, or ``urident identify --dahl-rad auto``): 2e-4 rad on th
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Mapping
 
 from urident.errors import ConfigError
-from urident.ident.crossval import CVScore, select_dahl_rad
+from urident.ident.crossval import CVScore, select_dahl_rad, select_torque_lead
 from urident.ident.design import ModelConfig
 from urident.ident.friction_select import DAHL_GRID, FrictionSelection, select_friction  # noqa: F401 (DAHL_GRID re-exported)
-from urident.ident.preprocess import Prepared
+from urident.ident.preprocess import Prepared, with_torque_lead
 
 CV_FOLDS = 5
+#: [s] leads of the measured torque over the motion that ``auto`` compares by blocked CV (the torque
+#: at t paired with the motion at t + lead; negative: the torque lags)
+TORQUE_LEAD_GRID = tuple(round(k * 0.002, 3) for k in range(-5, 6))
 
 
 @dataclass(frozen=True)
@@ -168,16 +174,29 @@ class PresetChoice:
     cv_scores: tuple[CVScore, ...] = ()
     selection: FrictionSelection | None = None   # the per-joint choice (preset auto)
     folds: int = CV_FOLDS
+    torque_lead_s: float = 0.0                   # [s] chosen by CV (preset auto), PreprocessConfig's
+    lead_scores: tuple[CVScore, ...] = ()        # the CV scores of TORQUE_LEAD_GRID, in its order
+    data: Prepared | None = field(default=None, repr=False, compare=False)   # the data to fit, with that lead (None: as given)
 
     def text(self) -> str:
         """What was chosen on the data, for the report ('' when nothing was)."""
         if self.selection is not None:
-            return self.selection.text()
+            return self.lead_text() + self.selection.text()
         if not self.cv_scores:
             return ""
         return (f"dahl_rad selected by {self.folds}-fold blocked CV on the identification data: "
                 f"{self.model.dahl_rad:g} rad (mean held-out RMS [N·m] per distance: "
                 + ", ".join(f"{s.model.dahl_rad:g}: {s.mean_rms_nm:.3f}" for s in self.cv_scores) + ")")
+
+
+    def lead_text(self) -> str:
+        if not self.lead_scores:
+            return ""
+        return (f"torque lead over the motion chosen by {self.folds}-fold blocked CV of the chosen model: "
+                f"{1000 * self.torque_lead_s:g} ms (the torque at t paired with the motion at t + lead; mean "
+                "held-out RMS [N·m] per lead [ms]: "
+                + ", ".join(f"{1000 * s:g}: {c.mean_rms_nm:.3f}" for s, c in zip(TORQUE_LEAD_GRID, self.lead_scores))
+                + ")\n")
 
 
 def get_preset(name: str) -> Preset:
@@ -192,7 +211,9 @@ def choose_on_data(spec, data: Prepared, choice: ModelChoice, folds: int = CV_FO
     joint's friction terms (``auto``) or δ from :data:`DAHL_GRID`; else ``choice`` as it is."""
     if choice.select_friction:
         sel = select_friction(spec, data, choice.model, folds)
-        return PresetChoice(choice.preset, sel.model, choice.weighting, (), sel, folds)
+        lead, scores = select_torque_lead(spec, data, sel.model, TORQUE_LEAD_GRID, choice.weighting, "ols", folds)
+        fitted = with_torque_lead(data, lead) if lead else None
+        return PresetChoice(choice.preset, sel.model, choice.weighting, (), sel, folds, lead, tuple(scores), fitted)
     if choice.select_dahl_rad:
         model, scores = select_dahl_rad(spec, data, choice.model, DAHL_GRID, choice.weighting, "ols", folds)
         return PresetChoice(choice.preset, model, choice.weighting, tuple(scores), None, folds)
