@@ -1,7 +1,7 @@
-"""Build the optional compiled regressor kernel; all other metadata lives in pyproject.toml.
+"""Build the optional compiled kernels (the regressor, the capsule distances); all other metadata lives in pyproject.toml.
 
 ``optional=True``: where no C compiler is available the install still succeeds and urident uses
-its numpy implementation of the regressor (same results, slower).
+its numpy implementations (same results, slower).
 """
 
 from setuptools import Extension, setup
@@ -13,6 +13,12 @@ setup(
             sources=["urident/model/_regressor_kernel.c"],
             extra_compile_args=["-O3", "-fno-math-errno"],  # lets gcc fuse sin/cos
             optional=True,
-        )
+        ),
+        Extension(
+            "urident.excitation._capsule_kernel",
+            sources=["urident/excitation/_capsule_kernel.c"],
+            extra_compile_args=["-O3", "-fno-math-errno"],
+            optional=True,
+        ),
     ]
 )

@@ -13,6 +13,7 @@ from urident.cli.main import main
 from urident.errors import ConfigError, SafetyError
 from urident.excitation import (FourierTrajectory, Limits, Margins, check_trajectory, load_trajectory,
                                 sample, trajectory_document, write_trajectory)
+from urident.excitation import collision
 from urident.excitation.collision import CoalDistances, capsule_model, segment_distances
 from urident.excitation.fourier import FourierBasis, base_frequency, free_coefficients, rest_elimination
 from urident.excitation.optimize import (PAPER_Q0, ExcitationProblem, ExcitationSettings,
@@ -159,6 +160,32 @@ def test_numpy_capsule_distances_equal_coal(name, rng):
     d_coal = CoalDistances(spec, capsules).distances(q)
     assert (d_np < 0).any() and (d_np > 0).any()   # both collisions and free configurations
     np.testing.assert_allclose(d_np, d_coal, atol=1e-9)
+
+
+def test_compiled_capsule_distances_equal_numpy_with_degenerate_capsules(ur5, rng):
+    assert collision.kernel_available()   # CI installs with a compiler; numpy is the fallback
+    capsules = capsule_model(ur5, 0.05, floor_height_m=-0.01)
+    b = capsules.b.copy()
+    b[[1, 4]] = capsules.a[[1, 4]]             # two capsules shrunk to spheres (degenerate segments)
+    for model in (capsules, replace(capsules, b=b)):
+        q = rng.uniform(-2 * np.pi, 2 * np.pi, (500, 6))
+        np.testing.assert_allclose(model.distances(ur5, q), model.numpy_distances(ur5, q), rtol=0, atol=1e-12)
+    with pytest.raises(ValueError, match="capsule kernel"):   # an index past the capsules
+        replace(capsules, first=capsules.first + len(capsules.frame)).distances(ur5, q)
+
+
+@pytest.mark.parametrize("name", ["ur5", "ur10e"])
+def test_capsule_distance_jacobians_match_finite_differences(name, rng):
+    spec = load_robot(name)
+    capsules = capsule_model(spec, 0.05, floor_height_m=-0.01)
+    q = rng.uniform(-np.pi, np.pi, (200, 6))
+    d, jac = capsules.distance_jacobians(spec, q)
+    np.testing.assert_allclose(d, capsules.distances(spec, q), atol=1e-12)
+    h = 1e-6
+    fd = np.stack([(capsules.distances(spec, q + h * e) - capsules.distances(spec, q - h * e)) / (2 * h)
+                   for e in np.eye(6)], axis=-1)
+    assert np.abs(jac).max() > 0.1            # the distances do move with the joints
+    np.testing.assert_allclose(jac, fd, rtol=0, atol=1e-7)
 
 
 def test_required_distances_relax_only_pairs_close_by_construction(ur5):

@@ -16,13 +16,20 @@ checked (like adjacent links). For all pairs that can move apart freely, this is
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
-from urident.model.kinematics import frame_poses
+from urident.model.kinematics import AXIS_INDEX, frame_poses, packed_joints
 from urident.model.pinocchio_model import TOOL_LINK, collision_link_pairs, floor_checked_links
 from urident.model.robot import RobotSpec
 
+try:  # compiled kernel (setup.py builds it when a C compiler is available)
+    from urident.excitation import _capsule_kernel
+except ImportError:  # pragma: no cover - exercised only where the build was skipped
+    _capsule_kernel = None
+
+KERNEL_MAX_CAPSULES = 64  # the kernel's stack buffer (the UR files have about 15)
 NEAR_PAIR_FRACTION = 0.5
 FIXED_PAIR_TOL_M = 1e-6
 _EXTENT_SAMPLES = 4096
@@ -51,7 +58,9 @@ class CapsuleModel:
 
     def world_segments(self, spec: RobotSpec, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Segment end points in the base frame, each (N, C, 3), for joint angles (N, 6)."""
-        rot, pos = frame_poses(spec, q)
+        return self._segments(*frame_poses(spec, q))
+
+    def _segments(self, rot: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         n = rot.shape[0]
         rot = np.concatenate([np.broadcast_to(np.eye(3), (n, 1, 3, 3)), rot[:, :6]], axis=1)
         pos = np.concatenate([np.zeros((n, 1, 3)), pos[:, :6]], axis=1)
@@ -63,6 +72,15 @@ class CapsuleModel:
 
     def distances(self, spec: RobotSpec, q: np.ndarray) -> np.ndarray:
         """Signed distances (N, P + F) [m] (negative: penetration depth) for joint angles (N, 6)."""
+        q = np.ascontiguousarray(np.atleast_2d(q), dtype=float)
+        if _capsule_kernel is not None and len(self.frame) <= KERNEL_MAX_CAPSULES:
+            out = np.empty((q.shape[0], self.n_pairs))  # the kernel writes every entry
+            _capsule_kernel.distances(out, q, *packed_joints(spec), *self._kernel_arguments)
+            return out
+        return self.numpy_distances(spec, q)
+
+    def numpy_distances(self, spec: RobotSpec, q: np.ndarray) -> np.ndarray:
+        """:meth:`distances` in numpy (where the compiled kernel was not built)."""
         pa, pb = self.world_segments(spec, np.atleast_2d(q))
         self_d = (segment_distances(pa[:, self.first], pb[:, self.first],
                                     pa[:, self.second], pb[:, self.second])
@@ -71,14 +89,65 @@ class CapsuleModel:
         floor_d = low - self.radius[self.floor] - self.floor_height_m
         return np.concatenate([self_d, floor_d], axis=1)
 
+    @cached_property
+    def _kernel_arguments(self) -> tuple[bytes, bytes, bytes, float]:
+        capsules = np.column_stack([self.frame, self.a, self.b, self.radius]).astype(float)
+        pairs = np.column_stack([self.first, self.second]).astype(np.int32)
+        return (capsules.tobytes(), pairs.tobytes(), self.floor.astype(np.int32).tobytes(),
+                float(self.floor_height_m))
+
+    def distance_jacobians(self, spec: RobotSpec, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`distances` (N, P + F) and their derivatives in the joint angles (N, P + F, 6).
+
+        A distance is that of the two closest points, which move with their links: its derivative
+        is the unit normal between them times their velocities z_i × (c − o_i) for every joint i
+        carrying them (the closest points' own motion along the segments does not change the
+        distance to first order). Where two segments touch, the normal is undefined: zero there."""
+        rot, pos = frame_poses(spec, np.atleast_2d(q))
+        pa, pb = self._segments(rot, pos)
+        axes = np.stack([rot[:, i, :, AXIS_INDEX[j.axis]] for i, j in enumerate(spec.joints)], axis=1)  # (N, 6, 3)
+        origins = pos[:, :6]
+        moves = self.frame[:, None] >= np.arange(6)[None, :]                     # (C, 6) joint i carries it
+
+        def point_jacobian(c: np.ndarray, capsules: np.ndarray) -> np.ndarray:  # (N, K, 6, 3)
+            v = np.cross(axes[:, None], c[:, :, None] - origins[:, None])
+            return v * moves[capsules][None, :, :, None]
+
+        i, k = self.first, self.second
+        s, t = segment_closest(pa[:, i], pb[:, i], pa[:, k], pb[:, k])
+        c1 = pa[:, i] + (pb[:, i] - pa[:, i]) * s[..., None]
+        c2 = pa[:, k] + (pb[:, k] - pa[:, k]) * t[..., None]
+        diff = c1 - c2
+        gap = np.sqrt(np.einsum("...i,...i->...", diff, diff))
+        normal = diff / np.where(gap > _EPS, gap, np.inf)[..., None]
+        self_j = np.einsum("npi,npji->npj", normal, point_jacobian(c1, i) - point_jacobian(c2, k))
+        self_d = gap - self.radius[i] - self.radius[k]
+        lower = pa[:, self.floor, 2] <= pb[:, self.floor, 2]
+        low = np.where(lower[..., None], pa[:, self.floor], pb[:, self.floor])   # (N, F, 3)
+        floor_j = point_jacobian(low, self.floor)[..., 2]
+        floor_d = low[..., 2] - self.radius[self.floor] - self.floor_height_m
+        return np.concatenate([self_d, floor_d], axis=1), np.concatenate([self_j, floor_j], axis=1)
+
     def margins(self, spec: RobotSpec, q: np.ndarray) -> np.ndarray:
         """Distance minus required distance (N, P + F); ≥ 0 when safe (+inf for unchecked pairs)."""
         return self.distances(spec, q) - self.required
 
 
+def kernel_available() -> bool:
+    return _capsule_kernel is not None
+
+
 def segment_distances(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray, q2: np.ndarray) -> np.ndarray:
-    """Distance between segments p1–q1 and p2–q2, all (..., 3), vectorised (Ericson, Real-Time
-    Collision Detection, 5.1.9, with the degenerate cases)."""
+    """Distance between segments p1–q1 and p2–q2, all (..., 3), vectorised."""
+    s, t = segment_closest(p1, q1, p2, q2)
+    diff = (p1 + (q1 - p1) * s[..., None]) - (p2 + (q2 - p2) * t[..., None])
+    return np.sqrt(np.einsum("...i,...i->...", diff, diff))
+
+
+def segment_closest(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray, q2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Parameters s, t ∈ [0, 1] of the closest points p1 + s(q1 − p1) and p2 + t(q2 − p2) of two
+    segments, all (..., 3), vectorised (Ericson, Real-Time Collision Detection, 5.1.9, with the
+    degenerate cases)."""
     d1, d2, r = q1 - p1, q2 - p2, p1 - p2
     a = np.einsum("...i,...i->...", d1, d1)
     e = np.einsum("...i,...i->...", d2, d2)
@@ -98,8 +167,7 @@ def segment_distances(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray, q2: np.nda
     t = np.where(a_ok, t, np.clip(f / safe_e, 0.0, 1.0))
     s = np.where(a_ok & ~e_ok, np.clip(-c / safe_a, 0.0, 1.0), s)
     t = np.where(e_ok, t, 0.0)
-    diff = (p1 + d1 * s[..., None]) - (p2 + d2 * t[..., None])
-    return np.sqrt(np.einsum("...i,...i->...", diff, diff))
+    return s, t
 
 
 def capsule_model(spec: RobotSpec, clearance_m: float, floor_height_m: float = 0.0) -> CapsuleModel:

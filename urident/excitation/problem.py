@@ -61,9 +61,9 @@ class ExcitationSettings:
     tolerance: float = 2e-3               # converged: the objective fell less than this over
     window: int = 50                      # the last ``window`` iterations (2e-3: 0.1 % of cond Θ̄_B)
     hops: int = 2                         # then restarts from the best, perturbed (basin hopping), in
-    hop_rounds: int = 3                   # at most this many rounds, each from the best so far, each
+    hop_rounds: int = 4                   # at most this many rounds, each from the best so far, each
     hop_scale: float = 0.3                # coefficient scaled by 1 + hop_scale·N(0, 1); a round starts
-    hop_evaluations: int = 6000           # only while the search used fewer evaluations (none: 1 start)
+    hop_evaluations: int = 9000           # only while the search used fewer evaluations (none: 1 start)
     polish: int = 2                       # then the best this many continue on the criterion on
     polish_samples: int = 100             # this many samples (the search's is coarser: cheaper)
     budget_s: float | None = None         # wall-time cap of the search [s]; None: until converged
@@ -220,11 +220,11 @@ class ExcitationProblem:
 
         The criterion's derivative in the Gram matrix is ``W`` (from its eigenvectors), so its
         derivative in the stacked columns is ``H = 2/m · Θ S⁻¹ W S⁻¹``; the regressor's derivatives
-        in each sample's state (q, q̇ by central differences, q̈ exactly: Θ is linear in it) are
+        in each sample's state (q, q̇ by forward differences, q̈ exactly: Θ is linear in it) are
         18 extra regressor evaluations per sample, one batch, and each state is linear in the
         coefficients (:class:`FourierBasis`). The torque penalty uses the same derivatives; the
-        kinematic penalty is differentiated analytically; the collision penalty by central
-        differences of the capsule distances in q, only at samples inside a required distance."""
+        kinematic penalty is differentiated analytically, the collision penalty through the capsule
+        distances' exact derivatives in q, only at samples inside a required distance."""
         x = flat.reshape(1, 6, self.n_free)
         basis = self.basis_criterion
         dq, qd, qdd = (a[0] for a in basis.evaluate(x))                   # (N, 6)
@@ -284,9 +284,9 @@ class ExcitationProblem:
         return value, grad
 
     def collision_penalty_gradient(self, x: np.ndarray) -> tuple[float, np.ndarray]:
-        """The collision penalty of one coefficient set (6, K) and its gradient (6, K): central
-        differences of the capsule distances in each joint angle, at the samples inside a
-        required distance (+ buffer) only."""
+        """The collision penalty of one coefficient set (6, K) and its gradient (6, K), from the
+        capsule distances' exact derivatives in the joint angles at the samples inside a required
+        distance (+ buffer) only."""
         basis = self.basis_collision
         q = basis.evaluate(x[None])[0][0] + self.q0                           # (N, 6)
         n = q.shape[0]
@@ -297,13 +297,9 @@ class ExcitationProblem:
         value = float(np.sum((short / COLLISION_SCALE_M) ** 2)) / n
         if not len(rows):
             return value, grad
-        h = STATE_STEP
-        step = np.concatenate([np.eye(6), -np.eye(6)]) * h                     # (12, 6)
-        qs = (q[rows][None] + step[:, None]).reshape(-1, 6)
-        dd = self.capsules.distances(self.spec, qs)[:, self.checked].reshape(12, len(rows), -1)
-        d_dq = (dd[:6] - dd[6:]) / (2 * h)                                     # (6, R, P)
-        g_d = -2.0 * short[rows] / COLLISION_SCALE_M ** 2 / n                               # (R, P)
-        g_q = np.einsum("rp,jrp->rj", g_d, d_dq)                               # (R, 6)
+        d_dq = self.capsules.distance_jacobians(self.spec, q[rows])[1][:, self.checked]   # (R, P, 6)
+        g_d = -2.0 * short[rows] / COLLISION_SCALE_M ** 2 / n                  # (R, P)
+        g_q = np.einsum("rp,rpj->rj", g_d, d_dq)                               # (R, 6)
         grad = np.einsum("rj,jrf->jf", g_q, basis.q[:, rows])
         return value, grad
 

@@ -45,3 +45,13 @@ def frame_poses(spec: RobotSpec, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     pos[:, 6] = p_prev + r_prev @ spec.tool_xyz
     rot[:, 6] = r_prev @ spec.tool_rotation
     return rot, pos
+
+
+def packed_joints(spec: RobotSpec) -> tuple[np.ndarray, bytes]:
+    """The compiled kernels' joint description: 6 × (xyz, R0 row-major) doubles and the axes as
+    bytes (0 = x, 1 = y, 2 = z), cached on the spec."""
+    cached = spec.arrays.get("packed_joints")
+    if cached is None:
+        packed = np.concatenate([np.r_[j.xyz, j.rotation.reshape(-1)] for j in spec.joints]).astype(float)
+        cached = spec.arrays["packed_joints"] = (packed, bytes(AXIS_INDEX[j.axis] for j in spec.joints))
+    return cached

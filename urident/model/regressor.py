@@ -15,7 +15,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from urident.model.kinematics import AXIS_INDEX
+from urident.model.kinematics import AXIS_INDEX, packed_joints
 from urident.model.parameters import COULOMB_OFFSET, N_PARAMS, ROTOR_OFFSET, VISCOUS_OFFSET, body_slice
 from urident.model.robot import RobotSpec
 
@@ -147,13 +147,11 @@ def regressor_blocks(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, qdd: np.nda
 
 
 def _kernel_geometry(spec: RobotSpec) -> tuple[np.ndarray, bytes]:
-    """The kernel's packed robot description, cached on the spec."""
+    """The kernel's packed robot description (:func:`packed_joints`, then gravity), cached on the spec."""
     cached = spec.arrays.get("_kernel_geometry")
     if cached is None:
-        packed = np.concatenate([np.r_[j.xyz, j.rotation.reshape(-1)] for j in spec.joints]
-                                + [spec.gravity]).astype(float)
-        axes = bytes(AXIS_INDEX[j.axis] for j in spec.joints)
-        cached = spec.arrays["_kernel_geometry"] = (packed, axes)
+        joints, axes = packed_joints(spec)
+        cached = spec.arrays["_kernel_geometry"] = (np.concatenate([joints, spec.gravity]).astype(float), axes)
     return cached
 
 
