@@ -365,20 +365,25 @@ def presliding(j: int, delta: float, mode: str = "ident") -> Candidate:
                   {"delta": float(delta)})
 
 
-def payload_error(spec, mode: str = "cv") -> Candidate:
+def set_payload_columns(spec, ctx) -> np.ndarray:
+    """(N, 6, 4) :func:`urident.ident.features.payload_columns` of a set's motion, built once per
+    set during a diagnosis (kept read-only in its cache; the events' smooth basis shares them)."""
     from urident.model import regressor_blocks
 
+    keep = isinstance(ctx, SetContext) and ctx.keeps_design()
+    key = ("payload_columns", spec.name)
+    if keep and key in ctx.cache:
+        return ctx.cache[key]
+    cols = features.payload_columns(regressor_blocks(spec, ctx.q, ctx.qd, ctx.qdd, ctx.friction_eps), spec.tool_xyz)
+    if keep:
+        cols.flags.writeable = False
+        ctx.cache[key] = cols
+    return cols
+
+
+def payload_error(spec, mode: str = "cv") -> Candidate:
     def build(ctx):
-        keep = isinstance(ctx, SetContext) and ctx.keeps_design()   # during a diagnosis: built once
-        key = ("payload_columns", spec.name)
-        if keep and key in ctx.cache:
-            return ctx.cache[key]
-        blocks = regressor_blocks(spec, ctx.q, ctx.qd, ctx.qdd, ctx.friction_eps)
-        cols = features.payload_columns(blocks, spec.tool_xyz)
-        if keep:
-            cols.flags.writeable = False
-            ctx.cache[key] = cols
-        return cols
+        return set_payload_columns(spec, ctx)
     return Candidate("payload_error", None, "point mass at the tool", mode,
                      ("tool point mass", "m*rho_x6", "m*rho_y6", "m*rho_z6"), build)
 

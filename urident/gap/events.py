@@ -153,7 +153,7 @@ def smooth_basis(ctx, spec=None) -> np.ndarray:
     the Dahl state minus tanh) and a constant, from a :class:`urident.gap.residual.SetContext`: fitted per
     joint and taken out of the residual before events are looked for, so that such a bump
     repeated at every reversal is never an event. With the robot ``spec``, also the payload
-    columns of :func:`urident.ident.features.payload_columns` (a load mounted after the
+    columns (:func:`urident.gap.candidates.set_payload_columns`; a load mounted after the
     identification run changes the gravity torque with the pose: smooth, no event)."""
     from urident.ident import features
 
@@ -166,10 +166,9 @@ def smooth_basis(ctx, spec=None) -> np.ndarray:
     z = dahl_states(velocity_displacement(p.t, p.qd, p.segment), BASIS_DELTAS, p.segment)
     cols += [zd - s for zd in z]           # friction held at a stop with the sign of the move before
     if spec is not None:
-        from urident.model import regressor_blocks
+        from urident.gap.candidates import set_payload_columns
 
-        pay = features.payload_columns(regressor_blocks(spec, ctx.q, ctx.qd, ctx.qdd, ctx.friction_eps),
-                                       spec.tool_xyz)
+        pay = set_payload_columns(spec, ctx)
         cols += [pay[:, :, i] for i in range(pay.shape[2])]
     return np.stack(cols, axis=2)
 

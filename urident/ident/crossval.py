@@ -76,7 +76,6 @@ def select_dahl_rad(spec, data: Prepared, model: ModelConfig, grid: Iterable[flo
     return replace(model, dahl_rad=grid[best]), scores
 
 
-
 def select_torque_lead(spec, data: Prepared, model: ModelConfig, grid: Iterable[float],
                        weighting: str = "none", method: str = "ols", folds: int = 5,
                        min_gain: float = 0.005) -> tuple[float, list[CVScore]]:

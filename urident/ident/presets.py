@@ -188,7 +188,6 @@ class PresetChoice:
                 f"{self.model.dahl_rad:g} rad (mean held-out RMS [N·m] per distance: "
                 + ", ".join(f"{s.model.dahl_rad:g}: {s.mean_rms_nm:.3f}" for s in self.cv_scores) + ")")
 
-
     def lead_text(self) -> str:
         if not self.lead_scores:
             return ""
