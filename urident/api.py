@@ -181,7 +181,8 @@ def identify(logs, robot, method: str = "ols", preset: str | None = None, *, mod
     models = identify_all(spec, data, methods, model, weighting, reg, config)
     report = "\n".join(signals) + "\n" + comparison_report(models)
     if choice.preset:
-        report = f"preset {choice.preset}{'' if preset == choice.preset else f' (asked for as {preset})'}\n" + report
+        asked = "" if preset == choice.preset else f" (asked for as {preset})"   # an alias: real-robot, best
+        report = f"preset {choice.preset}{asked}\n" + report
     if selection:
         report = selection + "\n" + report
     report = report + "\n" + logs_used(data.provenance)
