@@ -41,7 +41,9 @@ LEAD_CV = 1.229        # ... with the chosen lead
 FIXED_RMS = np.array([1.86, 2.63, 1.35, 0.31, 0.44, 0.52])
 FIXED_EN = 0.0605
 
-pytestmark = pytest.mark.skipif(not (ID_FILE.exists() and VAL_FILE.exists()), reason="UR10e data absent")
+pytestmark = [pytest.mark.skipif(not (ID_FILE.exists() and VAL_FILE.exists()), reason="UR10e data absent"),
+              # one worker, so the module's fixtures (auto's selection: seconds) are built once under xdist
+              pytest.mark.xdist_group("ident_ur10e")]
 
 
 @pytest.fixture(scope="module")
