@@ -15,7 +15,7 @@ which played a part in any choice:
 The push run (the arm held at rest while pushed) is not free motion and is left out. Prints one
 line per model and file, the per-file and mean RMS [N·m]; the last line is one JSON object.
 
-    python benchmarks/friction_heldout.py [--presets paper,real-robot,auto] [--method consistent]
+    python benchmarks/friction_heldout.py [--presets paper,ur10e-2020,auto] [--method consistent]
                                           [--min-t T] [--folds K]
 """
 
@@ -81,7 +81,7 @@ def held_out(data_dir: Path, models, method: str = "consistent", quiet: bool = F
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--presets", default="paper,real-robot,auto")
+    ap.add_argument("--presets", default="paper,ur10e-2020,auto")
     ap.add_argument("--method", default="consistent")
     ap.add_argument("--data", default=str(DATA))
     ap.add_argument("--min-t", type=float, help="auto's t threshold instead of friction_select.MIN_T (a variant)")

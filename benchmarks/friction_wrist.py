@@ -9,7 +9,8 @@ runs through the simulated controller offline (``urident simulate``, ``realistic
 currents (``benchmarks/friction_select.py``'s ``gaz``: φ1 = 0.8·f_c, φ2 = 25 s/rad, φ3 = 0.04 /
 −0.02 / 0.03 rad/s). Models, each fitted on the first half and scored (RMS, N·m) on the second:
 
-* ``paper``, ``real-robot``, ``auto``: the presets;
+* ``paper``, ``ur10e-2020`` (the fixed set ``real-robot`` meant before it named ``auto``),
+  ``auto``: the presets;
 * ``published``: the form that lab publishes: the full base set by plain least squares, each
   joint's friction a viscous term plus the Gaz sigmoid (no other Coulomb term), φ2 and φ3 chosen
   per joint on a grid (φ2 10-500 s/rad, φ3 −0.05..0.05 rad/s by 0.01) by 5-fold blocked CV
@@ -168,7 +169,7 @@ def main() -> None:
                 rec = replace(rec, current=rec.current + tau / spec.drive_gains)
                 first, second = halves(rec)
                 row = {}
-                for label, preset in (("paper", None), ("real-robot", "real-robot"), ("auto", "auto")):
+                for label, preset in (("paper", None), ("ur10e-2020", "ur10e-2020"), ("auto", "auto")):
                     with redirect_stdout(io.StringIO()), redirect_stderr(io.StringIO()):
                         res, choice, _, _ = fit_and_score(spec, first, second, preset)
                     row[label] = [round(float(v), 3) for v in res.rms_nm]
@@ -183,7 +184,7 @@ def main() -> None:
                 truth = {j: (PHI2, float(GAZ_PHI3[j])) for j in range(3, 6)}
                 row["true-form"] = [round(float(v), 3) for v in custom_model(spec, data, vdata, truth, False, "joint")]
                 out["runs"][f"{robot}/{seed}"] = row
-                for label in ("paper", "real-robot", "published", "true-form", "auto"):
+                for label in ("paper", "ur10e-2020", "published", "true-form", "auto"):
                     print(f"{robot} seed {seed} {label:<10} RMS " + " ".join(f"{v:.3f}" for v in row[label])
                           + f"  mean {np.mean(row[label]):.3f}", flush=True)
                 print("    auto: " + "; ".join(f"J{j + 1} {' + '.join(t)}" for j, t in enumerate(row["auto_terms"])))

@@ -399,18 +399,18 @@ def test_cli_presets_and_overrides(spec, tmp_path, capsys):
     _write_log(rec, tmp_path / "id.csv")
     out = tmp_path / "p.yaml"
     assert main(["identify", str(tmp_path / "id.csv"), "--robot", "ur5", "--out", str(out),
-                 "--preset", "real-robot"]) == 0
+                 "--preset", "ur10e-2020"]) == 0
     report = capsys.readouterr().out
-    assert "dahl_rad selected by 5-fold blocked CV" in report and "preset real-robot" in report
+    assert "dahl_rad selected by 5-fold blocked CV" in report and "preset ur10e-2020" in report
     m = load_params(out)
     assert m.weighting == "joint" and m.model.reduced and m.model.coulomb == "dahl"
     assert m.model.dahl_source == "velocity" and set(m.model.extras) == {"load", "sqrtvisc", "stribeck"}
     from urident.ident.presets import DAHL_GRID
 
     assert m.model.dahl_rad in DAHL_GRID
-    # --model best is the same preset; explicit options override it (fixed distance: no CV)
+    # explicit options override the fixed set (fixed distance: no CV)
     assert main(["identify", str(tmp_path / "id.csv"), "--robot", "ur5", "--out", str(out),
-                 "--model", "best", "--weighting", "none", "--dahl-rad", "1e-3", "--full",
+                 "--model", "ur10e-2020", "--weighting", "none", "--dahl-rad", "1e-3", "--full",
                  "--friction-extra", "load", "--overwrite"]) == 0
     assert "selected by" not in capsys.readouterr().out
     m = load_params(out)
@@ -423,6 +423,11 @@ def test_cli_presets_and_overrides(spec, tmp_path, capsys):
     assert main(["identify", str(tmp_path / "id.csv"), "--robot", "ur5", "--out", str(out),
                  "--dahl-rad", "auto", "--overwrite"]) == 2
     assert "needs a Dahl state" in capsys.readouterr().err
+    # --model best is real-robot is auto, which chooses its friction itself: the fixed set is named
+    assert main(["identify", str(tmp_path / "id.csv"), "--robot", "ur5", "--out", str(out),
+                 "--model", "best", "--weighting", "none", "--overwrite"]) == 2
+    err = capsys.readouterr().err
+    assert "--weighting conflicts with --preset best (= auto)" in err and "--preset ur10e-2020" in err
 
 
 def test_reports_name_the_friction_model_they_used():

@@ -3,7 +3,8 @@ view, gap --params and the live view; e_N and RMS come from ``urident.ident.metr
 
 End to end through the CLI: ``urident view`` and ``urident validate`` predict the same torques
 (read back from their .rrd files) and report the same e_N and RMS, on the real UR10e validation run
-with ``--preset real-robot`` parameters and on a urident log."""
+with ``--preset real-robot`` parameters (``auto``: per-joint terms and a torque lead, which both
+apply) and on a urident log."""
 
 from __future__ import annotations
 
@@ -70,17 +71,19 @@ def test_view_and_validate_agree_on_real_ur10e_with_real_robot_preset(tmp_path, 
     params = tmp_path / "ur10e_rr.yaml"
     assert main(["identify", str(UR10E_IDENT), "--robot", "ur10e", *UR10E, "--rows", "635-3510",
                  "--preset", "real-robot", "--method", "ols", "--out", str(params)]) == 0
-    assert load_params(params).model.dahl_source == "velocity"
+    assert "preset auto (asked for as real-robot)" in capsys.readouterr().out
+    identified = load_params(params)
+    assert identified.model.dahl_source == "velocity" and identified.preprocess.torque_lead_s > 0
     report = _assert_same(tmp_path, capsys, params, [str(UR10E_VALID), *UR10E, "--rows", "700-4200"],
                           "ur10e", 3501)
-    # the README's real-robot row (OLS): e_N 0.0605, RMS 0.44 / 0.52 on joints 5 / 6
-    assert report["e_n"] == pytest.approx(0.0605, abs=5e-4)
-    np.testing.assert_allclose(report["rms_nm"][4:], [0.44, 0.52], atol=0.01)
+    # the README's real-robot row (OLS): e_N 0.0599, RMS 0.43 / 0.55 on joints 5 / 6
+    assert report["e_n"] == pytest.approx(0.0599, abs=5e-4)
+    np.testing.assert_allclose(report["rms_nm"][4:], [0.43, 0.55], atol=0.01)
 
 
 def test_view_and_validate_agree_on_a_urident_log(tmp_path, capsys):
-    params = tmp_path / "sample_rr.yaml"
-    assert main(["identify", str(SAMPLE_IDENT), "--robot", "ur5", "--preset", "real-robot",
+    params = tmp_path / "sample_fixed.yaml"
+    assert main(["identify", str(SAMPLE_IDENT), "--robot", "ur5", "--preset", "ur10e-2020",
                  "--method", "ols", "--out", str(params)]) == 0
     n = len(load_log(SAMPLE_VALID))
     _assert_same(tmp_path, capsys, params, [str(SAMPLE_VALID)], "ur5", n)
@@ -98,7 +101,7 @@ def dahl_params(sample):
     from urident.ident.presets import PRESETS
 
     spec, ident, _ = sample
-    preset = PRESETS["real-robot"]
+    preset = PRESETS["ur10e-2020"]   # a fixed Dahl model with extras
     return identify(spec, prepare([ident], spec), "ols", preset.model, preset.weighting)
 
 

@@ -3,7 +3,7 @@ scripts. One import::
 
     import urident as ur
 
-    ident = ur.identify(["ident.csv"], robot="ur10e", method="all", preset="real-robot")
+    ident = ur.identify(["ident.csv"], robot="ur10e", method="all", preset="auto")
     ident.save("params.yaml")
     check = ur.validate(ident, ["valid.csv"])
     print(check.e_n, check.rms_nm)              # the paper's e_N; per-joint RMS [N·m], (6,)
@@ -124,7 +124,8 @@ def identify(logs, robot, method: str = "ols", preset: str | None = None, *, mod
     """Identify base parameters from ``logs`` (paths or Recordings, loaded one at a time).
 
     ``method``: ``ols`` (the paper's), ``bounded``, ``consistent`` or ``all``. ``preset``: a named
-    configuration (``paper``, ``auto``, ``real-robot``); ``model`` (a
+    configuration (``paper``, ``auto``, also spelled ``real-robot`` or ``best``, or the fixed
+    ``ur10e-2020``: :data:`urident.ident.presets.PRESETS`); ``model`` (a
     :class:`urident.ident.ModelConfig`), ``weighting``, ``select_dahl_rad`` and ``overrides``
     (single model options, :func:`urident.ident.presets.resolve_model`; ``option_names``: how
     the caller spells them in errors) override it. ``preprocess``: a
@@ -180,7 +181,8 @@ def identify(logs, robot, method: str = "ols", preset: str | None = None, *, mod
     models = identify_all(spec, data, methods, model, weighting, reg, config)
     report = "\n".join(signals) + "\n" + comparison_report(models)
     if choice.preset:
-        report = f"preset {choice.preset}\n" + report
+        asked = "" if preset == choice.preset else f" (asked for as {preset})"   # an alias: real-robot, best
+        report = f"preset {choice.preset}{asked}\n" + report
     if selection:
         report = selection + "\n" + report
     report = report + "\n" + logs_used(data.provenance)

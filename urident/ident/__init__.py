@@ -11,7 +11,7 @@ Main entry points::
         one prediction path of validate, gap --params, view and the live view (prediction.py)
     validate(identified, spec, prepared) -> ValidationResult
     save_params(identified, path) / load_params(path)
-    resolve_preset(spec, prepared, "real-robot") -> PresetChoice (model, weighting, CV scores)
+    resolve_preset(spec, prepared, "auto") -> PresetChoice (model, weighting, what CV chose)
 """
 
 from urident.ident.design import ModelConfig, design_matrix

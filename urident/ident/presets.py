@@ -1,6 +1,7 @@
-"""Named identification configurations: ``paper`` (the paper's method), ``real-robot`` and ``auto``,
-and the one place a preset meets a caller's explicit options (:func:`resolve_model`: the command
-line's flags and the API's keywords alike) and what it leaves to the data (:func:`choose_on_data`).
+"""Named identification configurations: ``paper`` (the paper's method), ``auto`` (also spelled
+``real-robot`` and ``best``) and ``ur10e-2020``, and the one place a preset meets a caller's
+explicit options (:func:`resolve_model`: the command line's flags and the API's keywords alike) and
+what it leaves to the data (:func:`choose_on_data`).
 
 ``auto``: the reduced base set, per-joint weighting, a Dahl presliding Coulomb state (driven by
 ∫q̇, δ chosen by blocked CV) and each joint's friction terms chosen by blocked CV on the
@@ -8,12 +9,15 @@ identification data given (:mod:`urident.ident.friction_select`): the same proce
 With those terms, the measured torque's lead over the motion is chosen by the same CV from
 :data:`TORQUE_LEAD_GRID` (:func:`urident.ident.crossval.select_torque_lead`; 8 ms on the UR10e run);
 ``PresetChoice.data`` is then the data to fit, and the lead goes into the preprocessing recorded.
+``real-robot`` and ``best`` name it since it predicted the UR10e's held-out recordings better than
+the fixed set below (docs/friction-selection.md).
 
 ``paper``: full base set (52 parameters), r_v·q̇ + r_c·tanh(q̇/ε) friction with ε = 0.01 rad/s,
 plain least squares (Kovincic et al. 2019).
 
-``real-robot``: the configuration that predicted the real UR10e best in blocked 5-fold
-cross-validation *inside the identification run* (ur-20_02_10-30sec_12harm.csv rows 635-3510,
+``ur10e-2020`` (what ``real-robot`` meant before it named ``auto``; kept so that figures measured
+with it can be reproduced): one fixed set of terms, the configuration that predicted the real UR10e
+best in blocked 5-fold cross-validation *inside the identification run* (ur-20_02_10-30sec_12harm.csv rows 635-3510,
 robot-file drive gains; score: mean over joints of the held-out RMS, N·m; the validation log played
 no part in any choice). Forward selection: a candidate was kept when it lowered the CV mean by at
 least 1 %; continuous hyper-parameters are the argmin of a grid.
@@ -79,14 +83,6 @@ class Preset:
 PRESETS = {
     "paper": Preset("paper", ModelConfig(), "none", False,
                     "the paper's method: full base set, tanh friction (eps 0.01 rad/s), plain OLS"),
-    "real-robot": Preset(
-        "real-robot",
-        ModelConfig(reduced=True, coulomb="dahl", dahl_source="velocity", dahl_rad=2e-4,
-                    extras=("load", "sqrtvisc", "stribeck"), stribeck_vs=0.05),
-        "joint", True,
-        "reduced base set, per-joint weighting, Dahl presliding Coulomb state driven by the "
-        "integrated velocity (distance chosen by 5-fold blocked CV), load-dependent Coulomb, "
-        "square-root viscous and Stribeck (v_s 0.05 rad/s) friction"),
     "auto": Preset(
         "auto", ModelConfig(reduced=True, coulomb="dahl", dahl_source="velocity", dahl_rad=2e-4),
         "joint", False,
@@ -95,11 +91,21 @@ PRESETS = {
         "offset, Stribeck, square-root/quadratic viscous, load-dependent Coulomb, Dahl, position "
         "harmonics) and the Dahl distance chosen by 5-fold blocked CV on the identification data",
         select_friction=True),
+    "ur10e-2020": Preset(
+        "ur10e-2020",
+        ModelConfig(reduced=True, coulomb="dahl", dahl_source="velocity", dahl_rad=2e-4,
+                    extras=("load", "sqrtvisc", "stribeck"), stribeck_vs=0.05),
+        "joint", True,
+        "one fixed set of terms chosen on a UR10e's 2020 run (real-robot's meaning before it named "
+        "auto): reduced base set, per-joint weighting, Dahl presliding Coulomb state driven by the "
+        "integrated velocity (distance chosen by 5-fold blocked CV), load-dependent Coulomb, "
+        "square-root viscous and Stribeck (v_s 0.05 rad/s) friction"),
 }
 
 
-#: Other names of presets (``--model best`` is the ``real-robot`` preset).
-PRESET_ALIASES = {"best": "real-robot"}
+#: Other names of presets: ``real-robot`` (and ``--model best``) is ``auto``, which predicted the
+#: UR10e's held-out recordings better than the fixed set it named before (now ``ur10e-2020``).
+PRESET_ALIASES = {"real-robot": "auto", "best": "auto"}
 #: What a caller may set over a preset: ModelConfig fields, the weighting, and whether δ is
 #: chosen by CV (``dahl_rad='auto'`` or ``select_dahl_rad=True``).
 OVERRIDES = ("reduced", "friction_eps", "coulomb", "hold_velocity", "dahl_rad", "dahl_source", "extras",
@@ -140,8 +146,10 @@ def resolve_model(preset: str | None = None, overrides: Mapping[str, object] | N
     if p is not None and p.select_friction:
         clash = [k for k in AUTO_CHOSEN if k in given]
         if clash:
-            raise ConfigError(f"{say(clash[0])} conflicts with {say('preset')} {name}, which chooses the friction "
-                              "terms and weighting itself from the identification logs")
+            spelled = name if preset == name else f"{preset} (= {name})"
+            raise ConfigError(f"{say(clash[0])} conflicts with {say('preset')} {spelled}, which chooses the friction "
+                              f"terms and weighting itself from the identification logs ({say('preset')} ur10e-2020: "
+                              "a fixed set of terms that options can change)")
     base = model if model is not None else (p.model if p else ModelConfig())
     weighting = given.pop("weighting", None) or (p.weighting if p else "none")
     select = bool(p and p.select_dahl_rad)
@@ -202,7 +210,7 @@ def get_preset(name: str) -> Preset:
     try:
         return PRESETS[PRESET_ALIASES.get(name, name)]
     except KeyError:
-        raise ConfigError(f"preset {name!r} unknown (known: {', '.join(PRESETS)})") from None
+        raise ConfigError(f"preset {name!r} unknown (known: {', '.join([*PRESETS, *PRESET_ALIASES])})") from None
 
 
 def choose_on_data(spec, data: Prepared, choice: ModelChoice, folds: int = CV_FOLDS) -> PresetChoice:
