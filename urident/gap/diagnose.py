@@ -29,7 +29,7 @@ from urident.gap.residual import baseline_design, fit_baseline, make_context
 from urident.gap.results import GapResult, e_n, rms
 from urident.gap.scoring import Scorer
 from urident.gap.selection import select
-from urident.gap.significance import unit_gain_variants
+from urident.gap.significance import choose_variant, unit_gain_variants
 from urident.gap.structure import identification_only
 from urident.gap.where import describe_unexplained, describe_where
 from urident.blas import one_blas_thread
@@ -188,7 +188,7 @@ def _diagnose_prepared(spec, ident: GapSet, valid: GapSet, params, config: GapCo
         where["at_rest"] = {"joints": [j + 1 for j in rest], "reason": AT_REST_REASON}
     scorer.prepare_gains(fams)
     fams = [unit_gain_variants(f, scorer) for f in fams]
-    pool = [max(f, key=scorer.training_gain) if len(f) > 1 else f[0] for f in fams if f]
+    pool = [choose_variant(f, scorer) for f in fams if f]
     scorer.prepare(pool)
 
     findings, steps, confounds, current = select(scorer, pool, block, config, ctx_v, spec)

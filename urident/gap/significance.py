@@ -158,6 +158,37 @@ def unit_gain_variants(fam: list, scorer) -> list:
     return [c for c in fam if ok(c)]
 
 
+def unresolved_harmonics(fam: list, best: Candidate, q_ident: np.ndarray) -> list:
+    """The variants of a ripple family ``fam`` whose harmonic the identification run cannot tell
+    from ``best``'s (its choice): over an angle span Δq two harmonics k, k' are resolved only when
+    |k − k'|·Δq ≥ 2π (Rayleigh), so on a joint that turns less than a revolution a low harmonic's
+    fit takes the shape of its neighbours'. ``q_ident`` (N,) the joint's angle in that run."""
+    k = best.settings.get("k")
+    span = float(np.ptp(q_ident)) if len(q_ident) else 0.0
+    if k is None or best.mode != "ident" or span <= 0:
+        return [best]
+    return [c for c in fam if c.mode == best.mode and abs(c.settings["k"] - k) * span < 2 * np.pi]
+
+
+def choose_variant(fam: list, scorer) -> Candidate:
+    """The variant of ``fam`` the diagnosis scores: the one that fits the identification data
+    best, unless that data cannot tell it from others (:func:`unresolved_harmonics`); then the
+    one of those whose identification fit explains most of its joint on the validation run."""
+    best = max(fam, key=scorer.training_gain) if len(fam) > 1 else fam[0]
+    if best.joint is None:
+        return best
+    tied = unresolved_harmonics(fam, best, scorer.ident.q[:, best.joint])
+    if len(tied) < 2:
+        return best
+    st = scorer.stats_for(tied)
+    r0 = scorer.valid.residual[:, best.joint]
+
+    def held_out(c):
+        r1 = scorer.evaluate([c], st).residual[:, best.joint]
+        return float(r0 @ r0 - r1 @ r1)
+    return max(tied, key=held_out)
+
+
 def plausible(c: Candidate, beta: np.ndarray) -> bool:
     """Sign and size constraints of the catalogue's physics on the fitted coefficients:
     Stribeck adds friction near zero velocity, load friction grows with load, drag grows with
