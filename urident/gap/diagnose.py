@@ -188,10 +188,11 @@ def _diagnose_prepared(spec, ident: GapSet, valid: GapSet, params, config: GapCo
         where["at_rest"] = {"joints": [j + 1 for j in rest], "reason": AT_REST_REASON}
     scorer.prepare_gains(fams)
     fams = [unit_gain_variants(f, scorer) for f in fams]
-    pool = [choose_variant(f, scorer) for f in fams if f]
+    fams = [f for f in fams if f]
+    pool = [choose_variant(f, scorer) for f in fams]
     scorer.prepare(pool)
 
-    findings, steps, confounds, current = select(scorer, pool, block, config, ctx_v, spec)
+    findings, steps, confounds, current = select(scorer, pool, block, config, ctx_v, spec, families=fams)
     final_r = current.residual
     findings = claims(findings, final_r, ctx_v, config, current)
     ident_only = identification_only(scorer, pool, list(current.ident) + list(current.cv), steps[-1],

@@ -170,21 +170,30 @@ def unresolved_harmonics(fam: list, best: Candidate, q_ident: np.ndarray) -> lis
     return [c for c in fam if c.mode == best.mode and abs(c.settings["k"] - k) * span < 2 * np.pi]
 
 
-def choose_variant(fam: list, scorer) -> Candidate:
+def choose_variant(fam: list, scorer, selected=(), current=None) -> Candidate:
     """The variant of ``fam`` the diagnosis scores: the one that fits the identification data
-    best, unless that data cannot tell it from others (:func:`unresolved_harmonics`); then the
-    one of those whose identification fit explains most of its joint on the validation run."""
-    best = max(fam, key=scorer.training_gain) if len(fam) > 1 else fam[0]
+    best (the validation data in CV mode), on top of the ``selected`` candidates (``current``:
+    their fit) when given, unless that data cannot tell it from others
+    (:func:`unresolved_harmonics`); then the one of those whose fit explains most of its joint on
+    the validation run."""
+    if len(fam) == 1:
+        return fam[0]
+    if current is None:
+        best = max(fam, key=scorer.training_gain)
+    else:
+        gains = scorer.gains_on_top(selected, current, fam)
+        best = fam[int(np.argmax(gains))]
     if best.joint is None:
         return best
     tied = unresolved_harmonics(fam, best, scorer.ident.q[:, best.joint])
     if len(tied) < 2:
         return best
-    st = scorer.stats_for(tied)
-    r0 = scorer.valid.residual[:, best.joint]
+    sel = list(selected)
+    st = scorer.stats_for(sel + tied)
+    r0 = (current.residual if current is not None else scorer.valid.residual)[:, best.joint]
 
     def held_out(c):
-        r1 = scorer.evaluate([c], st).residual[:, best.joint]
+        r1 = scorer.evaluate(sel + [c], st).residual[:, best.joint]
         return float(r0 @ r0 - r1 @ r1)
     return max(tied, key=held_out)
 
