@@ -195,8 +195,9 @@ def _diagnose_prepared(spec, ident: GapSet, valid: GapSet, params, config: GapCo
     findings, steps, confounds, current = select(scorer, pool, block, config, ctx_v, spec, families=fams)
     final_r = current.residual
     findings = claims(findings, final_r, ctx_v, config, current)
-    ident_only = identification_only(scorer, pool, list(current.ident) + list(current.cv), steps[-1],
-                                     config.min_shrink_pct)
+    # the last step scored the pool as the selection left it (variants chosen again on top)
+    ident_only = identification_only(scorer, [s.candidate for s in steps[-1]], list(current.ident)
+                                     + list(current.cv), steps[-1], config.min_shrink_pct)
     where["unexplained"] = describe_unexplained(ctx_v, final_r, min_shrink_pct=config.min_shrink_pct,
                                                 noise_ratio=config.cv_min_noise_ratio,
                                                 ident_structure=ident_only)   # beyond the catalogue
