@@ -175,7 +175,8 @@ def choose_variant(fam: list, scorer, selected=(), current=None) -> Candidate:
     best (the validation data in CV mode), on top of the ``selected`` candidates (``current``:
     their fit) when given, unless that data cannot tell it from others
     (:func:`unresolved_harmonics`); then the one of those whose fit explains most of its joint on
-    the validation run."""
+    the validation run (each fitted alone on the identification data, added to the residual the
+    ``selected`` ones leave)."""
     if len(fam) == 1:
         return fam[0]
     if current is None:
@@ -188,14 +189,9 @@ def choose_variant(fam: list, scorer, selected=(), current=None) -> Candidate:
     tied = unresolved_harmonics(fam, best, scorer.ident.q[:, best.joint])
     if len(tied) < 2:
         return best
-    sel = list(selected)
-    st = scorer.stats_for(sel + tied)
     r0 = (current.residual if current is not None else scorer.valid.residual)[:, best.joint]
-
-    def held_out(c):
-        r1 = scorer.evaluate(sel + [c], st).residual[:, best.joint]
-        return float(r0 @ r0 - r1 @ r1)
-    return max(tied, key=held_out)
+    gain = scorer.held_out_gains(tied, best.joint, r0)
+    return tied[int(np.argmax(gain))]
 
 
 def plausible(c: Candidate, beta: np.ndarray) -> bool:
