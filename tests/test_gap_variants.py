@@ -1,6 +1,6 @@
 """The choice of a family's variant (urident.gap.significance.choose_variant): a ripple harmonic the
 identification run's angle span cannot resolve is chosen by the validation fit; a resolved one by
-the identification fit."""
+the identification fit. And a later finding that a friction curve free per velocity bin explains."""
 
 from __future__ import annotations
 
@@ -53,3 +53,19 @@ def test_choose_variant_asks_the_validation_run_only_when_unresolved():
     fam = _family()
     assert choose_variant(fam, _Scorer(1.5)).settings["k"] == 2          # unresolved: validation
     assert choose_variant(fam, _Scorer(4 * np.pi)).settings["k"] == 3    # resolved: identification
+
+
+def test_a_friction_curve_free_per_velocity_bin_mends_a_later_finding():
+    from urident.gap.structure import misfit_of
+
+    rng = np.random.default_rng(3)
+    t = np.linspace(0.0, 60.0, 3000)
+    v = np.sin(t) * np.linspace(1.0, 0.3, len(t))        # faster early: velocity and time correlate
+    bins = np.digitize(v, np.quantile(v, np.linspace(0, 1, 14)[1:-1]))
+    r = 0.5 * v * np.abs(v) + 0.05 * rng.standard_normal(len(t))      # a friction curve left over
+    drift = np.exp(-t / 15.0) * v                                      # a warm-up stands in for it
+    bump = np.exp(-(v / 0.02) ** 2)                                    # an earlier finding, zero at speed
+    assert misfit_of(drift, r, [("presliding", bump)], bins, 0.05) is None
+    m = misfit_of(drift, r, [("presliding", bump), ("presliding", None)], bins, 0.05)
+    assert m is not None and m["of"] == "presliding" and m["scaled_pct"] > m["own_pct"]
+    assert misfit_of(np.sin(40 * t), np.sin(40 * t), [("presliding", None)], bins, 0.05) is None

@@ -99,7 +99,7 @@ def claims(findings, final_r, ctx_v, config: GapConfig, current=None) -> list:
     from dataclasses import replace
 
     from urident.gap.significance import noise_sigma
-    from urident.gap.structure import form_left, misfit_of, transition_of, velocity_bins
+    from urident.gap.structure import FRICTION_FORMS, form_left, misfit_of, transition_of, velocity_bins
 
     sigma = noise_sigma(final_r)
     corr = _corrections(current, ctx_v) if current is not None else []
@@ -124,6 +124,11 @@ def claims(findings, final_r, ctx_v, config: GapConfig, current=None) -> list:
                 left = offset_transition(f, own[:, j], findings)
         earlier = [(_label(c), x[:, j]) for g in out if g.joint == f.joint and g.effect != "payload_error"
                    for c, x in corr if _same(g, c) and c.joint == j]
+        # an earlier friction finding whose form the residual contradicts along the velocity: a
+        # later one that the joint's friction curve, free per velocity bin, explains as well mends it
+        earlier += [(_label(g), None) for g in out if g.joint == f.joint
+                    and g.effect in FRICTION_FORMS and g.claim == "partial"
+                    and str((g.remains or {}).get("axis", "")).startswith("velocity")]
         if not left and own is not None and earlier and f.effect != "payload_error":
             bins, axis = velocity_bins(j, ctx_v)
             m = misfit_of(own[:, j], final_r[:, j] + own[:, j], earlier, bins, config.parsimony_tol)
