@@ -1,6 +1,7 @@
 """The choice of a family's variant (urident.gap.significance.choose_variant): a ripple harmonic the
 identification run's angle span cannot resolve is chosen by the validation fit; a resolved one by
-the identification fit. And a later finding that a friction curve free per velocity bin explains."""
+the identification fit. And a later finding that a friction curve free per velocity bin explains; a Stribeck term of
+an offset's sign."""
 
 from __future__ import annotations
 
@@ -69,3 +70,13 @@ def test_a_friction_curve_free_per_velocity_bin_mends_a_later_finding():
     m = misfit_of(drift, r, [("presliding", bump), ("presliding", None)], bins, 0.05)
     assert m is not None and m["of"] == "presliding" and m["scaled_pct"] > m["own_pct"]
     assert misfit_of(np.sin(40 * t), np.sin(40 * t), [("presliding", None)], bins, 0.05) is None
+
+
+def test_a_stribeck_term_may_take_the_sign_of_an_offset_on_its_joint():
+    from urident.gap.candidates import stribeck
+    from urident.gap.significance import plausible
+
+    c = stribeck(2, 0.005)
+    assert plausible(c, np.array([0.8])) and not plausible(c, np.array([-0.8]))
+    assert plausible(c, np.array([-0.8]), offset=-1.7)        # a Coulomb level lower one way
+    assert not plausible(c, np.array([-0.8]), offset=1.7)
