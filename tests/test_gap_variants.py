@@ -1,7 +1,7 @@
 """The choice of a family's variant (urident.gap.significance.choose_variant): a ripple harmonic the
-identification run's angle span cannot resolve is chosen by the validation fit; a resolved one by
-the identification fit. And a later finding that a friction curve free per velocity bin explains; a Stribeck term of
-an offset's sign."""
+identification run's angle span cannot resolve is chosen by the validation fit, a resolved one by
+the identification fit; a later finding that a friction curve free per velocity bin explains as
+well; a Stribeck term of an offset's sign."""
 
 from __future__ import annotations
 
