@@ -256,22 +256,6 @@ class Scorer:
             out.append(float(2.0 * beta @ xty - beta @ gram @ beta))
         return out
 
-    def held_out_gains(self, variants: Sequence[Candidate], j: int, r: np.ndarray) -> np.ndarray:
-        """Reduction of ``r`` (N,), joint ``j``'s validation residual, by each identification-mode
-        candidate of ``variants`` fitted alone on the identification data (its
-        :meth:`training_beta`, the base parameters refitted with it): one pass over the design."""
-        st = IdentStats(self.ident, variants, self._factors)
-        gb = np.stack([st.g_of(c) @ self.training_beta(c) for c in variants], axis=1)   # (p, m)
-        change = np.empty((self.valid.n, len(variants)))
-        for a, b, blocks in self.valid.chunks():
-            change[a:b] = -(blocks[:, j, :] @ gb)
-        for i, c in enumerate(variants):
-            for jj, x in joint_parts(c, self.valid):
-                if jj == j:
-                    change[:, i] += x @ self.training_beta(c)
-        r1 = r[:, None] - change
-        return float(r @ r) - np.sum(r1 * r1, axis=0)
-
     def training_beta(self, c: Candidate) -> np.ndarray | None:
         """The coefficients behind :meth:`training_gain`."""
         self.training_gain(c)

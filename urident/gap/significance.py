@@ -158,40 +158,16 @@ def unit_gain_variants(fam: list, scorer) -> list:
     return [c for c in fam if ok(c)]
 
 
-def unresolved_harmonics(fam: list, best: Candidate, q_ident: np.ndarray) -> list:
-    """The variants of a ripple family ``fam`` whose harmonic the identification run cannot tell
-    from ``best``'s (its choice): over an angle span Δq two harmonics k, k' are resolved only when
-    |k − k'|·Δq ≥ 2π (Rayleigh), so on a joint that turns less than a revolution a low harmonic's
-    fit takes the shape of its neighbours'. ``q_ident`` (N,) the joint's angle in that run."""
-    k = best.settings.get("k")
-    span = float(np.ptp(q_ident)) if len(q_ident) else 0.0
-    if k is None or best.mode != "ident" or span <= 0:
-        return [best]
-    return [c for c in fam if c.mode == best.mode and abs(c.settings["k"] - k) * span < 2 * np.pi]
-
-
 def choose_variant(fam: list, scorer, selected=(), current=None) -> Candidate:
     """The variant of ``fam`` the diagnosis scores: the one that fits the identification data
     best (the validation data in CV mode), on top of the ``selected`` candidates (``current``:
-    their fit) when given, unless that data cannot tell it from others
-    (:func:`unresolved_harmonics`); then the one of those whose fit explains most of its joint on
-    the validation run (each fitted alone on the identification data, added to the residual the
-    ``selected`` ones leave)."""
+    their fit) when given."""
     if len(fam) == 1:
         return fam[0]
     if current is None:
-        best = max(fam, key=scorer.training_gain)
-    else:
-        gains = scorer.gains_on_top(selected, current, fam)
-        best = fam[int(np.argmax(gains))]
-    if best.joint is None:
-        return best
-    tied = unresolved_harmonics(fam, best, scorer.ident.q[:, best.joint])
-    if len(tied) < 2:
-        return best
-    r0 = (current.residual if current is not None else scorer.valid.residual)[:, best.joint]
-    gain = scorer.held_out_gains(tied, best.joint, r0)
-    return tied[int(np.argmax(gain))]
+        return max(fam, key=scorer.training_gain)
+    gains = scorer.gains_on_top(selected, current, fam)
+    return fam[int(np.argmax(gains))]
 
 
 def _offset_on(f: Fit, j: int | None) -> float | None:
