@@ -181,7 +181,7 @@ def plausible(c: Candidate, beta: np.ndarray, offset: float | None = None) -> bo
     Stribeck adds friction near zero velocity (or, beside an ``offset`` found on its joint, has
     that offset's sign: a Coulomb level that differs by direction and changes sign more sharply
     than tanh(q̇/ε), :func:`urident.gap.diagnose.offset_transition`), load friction grows with
-    speed, presliding
+    load, drag grows with speed, presliding
     friction holds (same sign as the motion before the stop), a delay is
     positive (its exact shift, like a lag, has a gain near 1: :data:`UNIT_GAIN`), an elastic joint has positive J/k, a payload has a mass (|m| >= MIN_PAYLOAD_KG,
     negative: a modelled payload removed) with its centre within 0.5 m of the tool point.
