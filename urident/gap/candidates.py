@@ -399,7 +399,9 @@ def perpendicular_neighbours(spec, j: int) -> list[int]:
 def families(spec, ident: SetContext, valid: SetContext, effects=EFFECTS, ripple_peaks: int = 3,
              joints=range(6)) -> list[list[Candidate]]:
     """Every (effect, joint, mode) with its variants; the diagnosis keeps, per family, the variant
-    that fits the identification data best (the validation data in CV mode)."""
+    that fits the identification data best (the validation data in CV mode;
+    :func:`urident.gap.significance.choose_variant`: again on top of a friction finding on the
+    joint)."""
     from urident.gap.maps import angle_spectrum
     from urident.gap.structure import angle_harmonics
 

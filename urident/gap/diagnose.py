@@ -29,7 +29,7 @@ from urident.gap.residual import baseline_design, fit_baseline, make_context
 from urident.gap.results import GapResult, e_n, rms
 from urident.gap.scoring import Scorer
 from urident.gap.selection import select
-from urident.gap.significance import unit_gain_variants
+from urident.gap.significance import choose_variant, unit_gain_variants
 from urident.gap.structure import identification_only
 from urident.gap.where import describe_unexplained, describe_where
 from urident.blas import one_blas_thread
@@ -99,7 +99,7 @@ def claims(findings, final_r, ctx_v, config: GapConfig, current=None) -> list:
     from dataclasses import replace
 
     from urident.gap.significance import noise_sigma
-    from urident.gap.structure import form_left, misfit_of, transition_of, velocity_bins
+    from urident.gap.structure import FRICTION_FORMS, form_left, misfit_of, transition_of, velocity_bins
 
     sigma = noise_sigma(final_r)
     corr = _corrections(current, ctx_v) if current is not None else []
@@ -124,6 +124,11 @@ def claims(findings, final_r, ctx_v, config: GapConfig, current=None) -> list:
                 left = offset_transition(f, own[:, j], findings)
         earlier = [(_label(c), x[:, j]) for g in out if g.joint == f.joint and g.effect != "payload_error"
                    for c, x in corr if _same(g, c) and c.joint == j]
+        # an earlier friction finding whose form the residual contradicts along the velocity: a
+        # later one that the joint's friction curve, free per velocity bin, explains as well mends it
+        earlier += [(_label(g), None) for g in out if g.joint == f.joint
+                    and g.effect in FRICTION_FORMS and g.claim == "partial"
+                    and str((g.remains or {}).get("axis", "")).startswith("velocity")]
         if not left and own is not None and earlier and f.effect != "payload_error":
             bins, axis = velocity_bins(j, ctx_v)
             m = misfit_of(own[:, j], final_r[:, j] + own[:, j], earlier, bins, config.parsimony_tol)
@@ -188,14 +193,16 @@ def _diagnose_prepared(spec, ident: GapSet, valid: GapSet, params, config: GapCo
         where["at_rest"] = {"joints": [j + 1 for j in rest], "reason": AT_REST_REASON}
     scorer.prepare_gains(fams)
     fams = [unit_gain_variants(f, scorer) for f in fams]
-    pool = [max(f, key=scorer.training_gain) if len(f) > 1 else f[0] for f in fams if f]
+    fams = [f for f in fams if f]
+    pool = [choose_variant(f, scorer) for f in fams]
     scorer.prepare(pool)
 
-    findings, steps, confounds, current = select(scorer, pool, block, config, ctx_v, spec)
+    findings, steps, confounds, current = select(scorer, pool, block, config, ctx_v, spec, families=fams)
     final_r = current.residual
     findings = claims(findings, final_r, ctx_v, config, current)
-    ident_only = identification_only(scorer, pool, list(current.ident) + list(current.cv), steps[-1],
-                                     config.min_shrink_pct)
+    # the last step scored the pool as the selection left it (variants chosen again on top)
+    ident_only = identification_only(scorer, [s.candidate for s in steps[-1]], list(current.ident)
+                                     + list(current.cv), steps[-1], config.min_shrink_pct)
     where["unexplained"] = describe_unexplained(ctx_v, final_r, min_shrink_pct=config.min_shrink_pct,
                                                 noise_ratio=config.cv_min_noise_ratio,
                                                 ident_structure=ident_only)   # beyond the catalogue

@@ -231,6 +231,31 @@ class Scorer:
             self._gains[c] = float(f"{gain:.12g}")
         return self._gains[c]
 
+    def gains_on_top(self, selected: Sequence[Candidate], current: "Fit", variants: Sequence[Candidate]) -> list[float]:
+        """:meth:`training_gain` of each of ``variants`` on top of the ``selected`` candidates
+        (``current``: their fit): in identification mode refitted jointly with the selected
+        identification-mode ones, in CV mode on the validation residual they leave."""
+        chosen = [c for c in selected if c.mode == "ident"]
+        ident = [c for c in variants if c.mode == "ident"]
+        if ident:
+            st = IdentStats(self.ident, chosen + ident, self._factors)
+            i0 = st.cols(chosen) if chosen else np.zeros(0, int)
+            ss0 = _ss_after(st.gram[np.ix_(i0, i0)], st.fty[i0], st.yy)[1] if chosen else st.yy
+        y = current.residual
+        out = []
+        for c in variants:
+            if c.mode == "ident":
+                i = st.cols(chosen + [c])
+                out.append(ss0 - _ss_after(st.gram[np.ix_(i, i)], st.fty[i], st.yy)[1])
+                continue
+            gram, xty = np.zeros((c.k, c.k)), np.zeros(c.k)
+            for j, x in joint_parts(c, self.valid):
+                gram += x.T @ x
+                xty += x.T @ y[:, j]
+            beta = lstsq_gram(gram, xty)
+            out.append(float(2.0 * beta @ xty - beta @ gram @ beta))
+        return out
+
     def training_beta(self, c: Candidate) -> np.ndarray | None:
         """The coefficients behind :meth:`training_gain`."""
         self.training_gain(c)

@@ -26,15 +26,20 @@ from urident.gap.config import GapConfig
 from urident.gap.residual import SetContext
 from urident.gap.results import Finding, Score, rms
 from urident.gap.scoring import Fit, Scorer
-from urident.gap.significance import admissible, noise_sigma, score_all
+from urident.gap.significance import admissible, choose_variant, noise_sigma, score_all
+from urident.gap.structure import FRICTION_FORMS
 from urident.gap.where import finding_regime
 
 
 def select(scorer: Scorer, pool: list[Candidate], block: int, config: GapConfig, ctx_v: SetContext,
-           spec, prefer=None) -> tuple[list[Finding], list[list[Score]], list[dict], Fit]:
+           spec, prefer=None, families=None) -> tuple[list[Finding], list[list[Score]], list[dict], Fit]:
     """Forward, then backward selection over ``pool`` (module doc): the findings, every step's
     scores, the confound rows and the fit of the selected candidates. ``prefer(candidate)``: in
-    phase B, a significant preferred candidate is taken before any other."""
+    phase B, a significant preferred candidate is taken before any other. ``families``: each pool
+    member's family (same order); after a friction finding, the other friction families on its
+    joint choose their variant again on top of the findings (a Stribeck velocity chosen against
+    the bare residual mimics the sharp transition a presliding finding then takes)."""
+    fam_of = {id(c): f for c, f in zip(pool, families)} if families is not None else {}
     selected: list[Candidate] = []
     findings: list[Finding] = []
     steps: list[list[Score]] = []
@@ -78,6 +83,17 @@ def select(scorer: Scorer, pool: list[Candidate], block: int, config: GapConfig,
         findings.append(make_finding(best.materialize(), conf, ctx_v, spec, config))
         selected.append(best.candidate)
         current = best.fit
+        j = best.candidate.joint
+        if fam_of and j is not None and best.candidate.effect in FRICTION_FORMS:
+            taken = {c.key for c in selected}
+            again = []
+            for c in pool:
+                fam = fam_of[id(c)]
+                new = c if c.key in taken or c.joint != j or c.effect not in FRICTION_FORMS \
+                    else choose_variant(fam, scorer, selected, current)
+                fam_of[id(new)] = fam
+                again.append(new)
+            pool = again
 
     if len(selected) > 1:
         kept = backward(scorer, selected, block, config)

@@ -69,7 +69,7 @@ def score_all(scorer: Scorer, current: Fit, pool: list[Candidate], block: int,
         else:
             held_out = lo > 0
         s.significant = bool(held_out and s.shrink_pct >= config.min_shrink_pct
-                             and plausible(c, f.coefficients()[c])
+                             and plausible(c, f.coefficients()[c], _offset_on(f, c.joint))
                              and (c.mode != "ident" or aligned(n * float(rms0[joint] ** 2 - rms1[joint] ** 2), n,
                                                                float(change_rms[i][joint]),
                                                                config.ident_max_projection))
@@ -158,10 +158,30 @@ def unit_gain_variants(fam: list, scorer) -> list:
     return [c for c in fam if ok(c)]
 
 
-def plausible(c: Candidate, beta: np.ndarray) -> bool:
+def choose_variant(fam: list, scorer, selected=(), current=None) -> Candidate:
+    """The variant of ``fam`` the diagnosis scores: the one that fits the identification data
+    best (the validation data in CV mode), on top of the ``selected`` candidates (``current``:
+    their fit) when given."""
+    if len(fam) == 1:
+        return fam[0]
+    if current is None:
+        return max(fam, key=scorer.training_gain)
+    gains = scorer.gains_on_top(selected, current, fam)
+    return fam[int(np.argmax(gains))]
+
+
+def _offset_on(f: Fit, j: int | None) -> float | None:
+    """The coefficient of a current offset on joint ``j`` among ``f``'s candidates, or None."""
+    return next((float(b[0]) for o, b in f.coefficients().items()
+                 if o.effect == "current_offset" and o.joint == j and j is not None), None)
+
+
+def plausible(c: Candidate, beta: np.ndarray, offset: float | None = None) -> bool:
     """Sign and size constraints of the catalogue's physics on the fitted coefficients:
-    Stribeck adds friction near zero velocity, load friction grows with load, drag grows with
-    speed, presliding
+    Stribeck adds friction near zero velocity (or, beside an ``offset`` found on its joint, has
+    that offset's sign: a Coulomb level that differs by direction and changes sign more sharply
+    than tanh(q̇/ε), :func:`urident.gap.diagnose.offset_transition`), load friction grows with
+    load, drag grows with speed, presliding
     friction holds (same sign as the motion before the stop), a delay is
     positive (its exact shift, like a lag, has a gain near 1: :data:`UNIT_GAIN`), an elastic joint has positive J/k, a payload has a mass (|m| >= MIN_PAYLOAD_KG,
     negative: a modelled payload removed) with its centre within 0.5 m of the tool point.
@@ -169,6 +189,8 @@ def plausible(c: Candidate, beta: np.ndarray) -> bool:
     b = np.asarray(beta, float)
     if unit_gain(c):
         return bool(UNIT_GAIN[0] <= b[0] <= UNIT_GAIN[1])
+    if c.effect == "stribeck" and offset is not None and b[0] * offset > 0:
+        return True
     if c.effect in ("stribeck", "load_friction", "presliding", "quadratic_viscous", "neighbour_load_friction",
                     "current_lag"):
         return bool(b[0] > 0)

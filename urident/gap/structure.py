@@ -212,6 +212,9 @@ def describe(f: dict) -> str:
 
 #: The axis along which each effect's form is checked after the findings (its own variable): the
 #: joint's signed velocity for friction effects, the model torque for a gain, time for a drift.
+#: Friction forms: functions of the joint's motion along its velocity (their misfit is a friction curve)
+FRICTION_FORMS = ("stribeck", "load_friction", "presliding", "quadratic_viscous", "neighbour_load_friction",
+                  "asymmetric_coulomb")
 FORM_AXIS = {"stribeck": "velocity", "load_friction": "velocity", "presliding": "velocity",
              "quadratic_viscous": "velocity", "neighbour_load_friction": "velocity",
              "thermal_drift": "time", "torque_constant_error": "torque", "current_delay": "velocity",
@@ -305,7 +308,7 @@ def misfit_of(col: np.ndarray, r: np.ndarray, others: list[tuple[str, np.ndarray
     there: ``others`` (label, that finding's correction on the joint (N,)); ``bins`` (N,) the bins
     of the joint's velocity (:func:`_axis_bins`). The other finding scaled freely per velocity bin
     is its own form with a different velocity dependence (a sharper transition, a bump, a faster
-    rise). When that explains ``r`` (the joint's residual without ``col``'s correction) at least
+    rise); a correction None stands for the joint's friction curve, free per bin. When that explains ``r`` (the joint's residual without ``col``'s correction) at least
     (1 − ``tol``) as well as ``col`` does, ``col`` is that finding's form misfit: its ``label``,
     with both shares of r's sum of squares; else None."""
     rr = float(r @ r)
@@ -315,7 +318,8 @@ def misfit_of(col: np.ndarray, r: np.ndarray, others: list[tuple[str, np.ndarray
     own = float((r @ col) ** 2 / xx)
     best = None
     for name, c in others:
-        x = np.stack([c * (bins == b) for b in np.unique(bins)], axis=1)
+        # None: a free function of the velocity (a constant per bin), the friction curve itself
+        x = np.stack([(c if c is not None else 1.0) * (bins == b) for b in np.unique(bins)], axis=1)
         x = x[:, np.any(x != 0, axis=0)]
         if not x.size:
             continue
