@@ -204,16 +204,20 @@ class Scorer:
                 for c in fam:
                     self.training_gain(c)
 
-    def _cv_gain(self, c: Candidate) -> float:
-        y = self.valid.residual
+    def _cv_fit(self, c: Candidate, y: np.ndarray) -> tuple[float, np.ndarray]:
+        """Reduction of the validation residual ``y``'s sum of squares by ``c`` alone, and its
+        coefficients."""
         gram = np.zeros((c.k, c.k))
         xty = np.zeros(c.k)
         for j, x in joint_parts(c, self.valid):
             gram += x.T @ x
             xty += x.T @ y[:, j]
         beta = lstsq_gram(gram, xty)
-        self._betas[c] = beta
-        return float(2.0 * beta @ xty - beta @ gram @ beta)
+        return float(2.0 * beta @ xty - beta @ gram @ beta), beta
+
+    def _cv_gain(self, c: Candidate) -> float:
+        gain, self._betas[c] = self._cv_fit(c, self.valid.residual)
+        return gain
 
     def training_gain(self, c: Candidate) -> float:
         """Reduction of the fitting data's squared residual by ``c`` alone (choice of variant),
@@ -248,12 +252,7 @@ class Scorer:
                 i = st.cols(chosen + [c])
                 out.append(ss0 - _ss_after(st.gram[np.ix_(i, i)], st.fty[i], st.yy)[1])
                 continue
-            gram, xty = np.zeros((c.k, c.k)), np.zeros(c.k)
-            for j, x in joint_parts(c, self.valid):
-                gram += x.T @ x
-                xty += x.T @ y[:, j]
-            beta = lstsq_gram(gram, xty)
-            out.append(float(2.0 * beta @ xty - beta @ gram @ beta))
+            out.append(self._cv_fit(c, y)[0])
         return out
 
     def training_beta(self, c: Candidate) -> np.ndarray | None:
