@@ -75,7 +75,7 @@ def select(scorer: Scorer, pool: list[Candidate], block: int, config: GapConfig,
             preferred = [s for s in sig if prefer is not None and prefer(s.candidate)]
             best = max(preferred or sig, key=lambda s: s.gain)
         conf = confounded(best, scores, block, config)
-        simpler = simplest_equivalent(best, conf, scores, block, config)
+        simpler = simplest_equivalent(best, conf, scores, block, config, scorer, selected)
         if simpler is not best:
             best = simpler
             conf = confounded(best, scores, block, config)
@@ -159,18 +159,25 @@ def ident_shortlist(scorer: Scorer, selected: list[Candidate], free: list[Candid
 
 
 def simplest_equivalent(best: Score, conf: list[Score], scores: list[Score], block: int,
-                        config: GapConfig) -> Score:
+                        config: GapConfig, scorer: Scorer | None = None,
+                        selected: list[Candidate] = ()) -> Score:
     """Among ``best`` and the candidates confounded with it (:func:`confounded`) that are
     significant and admissible, the one with the fewest fitted columns whose held-out gain the data
     does not tell from ``best``'s in practice: the paired block-bootstrap interval of the
     per-sample difference of their improvements contains 0, or the alternative keeps at least
-    1 − ``parsimony_tol`` of ``best``'s gain. Equal column counts keep the larger gain, so
-    ``best`` stays unless a simpler explanation is as good.
+    1 − ``parsimony_tol`` of ``best``'s gain. Among the equivalent ones with the fewest columns,
+    when all are identification-mode and ``scorer`` is given, the one whose refit (with the
+    ``selected`` identification-mode candidates) leaves the smallest identification residual;
+    else ``best`` when it is among them, or the largest gain (``best`` stays unless a simpler
+    explanation is as good).
 
     Why: the larger one's extra columns also soak up the baseline's own misfit (Occam; the
-    confound is still reported either way; docs/gap-calibration.md)."""
+    confound is still reported either way); an identification-mode effect claims to act in the
+    identification logs, where it was fitted with the same number of columns: when the held-out
+    data cannot tell two apart, those logs can (a drive-gain error of joint 3 or of its parallel
+    neighbour 2, docs/gap-calibration.md)."""
     alts = [s for s in conf if s.significant and admissible(s, scores)
-            and s.candidate.k < best.candidate.k]
+            and s.candidate.k <= best.candidate.k]
     if not alts:
         return best
     if best.d_blocks is not None and all(s.d_blocks is not None for s in alts):
@@ -183,7 +190,12 @@ def simplest_equivalent(best: Score, conf: list[Score], scores: list[Score], blo
              or s.gain >= (1.0 - config.parsimony_tol) * best.gain]
     if not equal:
         return best
-    return min(equal, key=lambda s: (s.candidate.k, -s.gain))
+    fewest = min(s.candidate.k for s in equal)
+    group = [s for s in [best] + equal if s.candidate.k == fewest]
+    if scorer is not None and len(group) > 1 and all(s.candidate.mode == "ident" for s in group):
+        chosen = [c for c in selected if c.mode == "ident"]
+        return min(group, key=lambda s: (scorer.ident_ss(chosen + [s.candidate]), -s.gain))
+    return best if best in group else max(group, key=lambda s: s.gain)
 
 
 def label(s: Score) -> str:
