@@ -259,6 +259,80 @@ def test_a_confounded_simpler_explanation_as_good_as_the_best_is_chosen():
     assert simplest_equivalent(ripple, [offset], [ripple, offset], 200, strict) is ripple
 
 
+
+class _IdentSS:
+    """The one scorer method the tie-break reads: the identification residual after a refit."""
+
+    def __init__(self, ss):
+        self.ss = ss
+
+    def ident_ss(self, cands):
+        return sum(self.ss[c.effect] for c in cands)
+
+
+def test_equivalent_identification_explanations_are_told_apart_by_the_identification_logs():
+    """Two confounded identification-mode candidates with one column each and held-out gains the
+    data cannot tell apart (a drive-gain error of joint 2 or of its parallel neighbour 3): the one
+    whose refit leaves the smaller identification residual is chosen, whichever has the larger
+    held-out gain; a CV-mode alternative, or no scorer, keeps the best."""
+    from urident.gap.selection import simplest_equivalent
+
+    rng = np.random.default_rng(1)
+    base = 1.0 + rng.normal(0.0, 0.3, 4000)
+    cfg = GapConfig(n_boot=300)
+    best = _score("torque_constant_error", 1, base * 1.001)
+    other = _score("current_offset", 1, base)
+    scorer = _IdentSS({"torque_constant_error": 2745.8, "current_offset": 2740.7})
+    assert simplest_equivalent(best, [other], [best, other], 200, cfg, scorer) is other
+    scorer = _IdentSS({"torque_constant_error": 2740.7, "current_offset": 2745.8})
+    assert simplest_equivalent(best, [other], [best, other], 200, cfg, scorer) is best
+    assert simplest_equivalent(best, [other], [best, other], 200, cfg) is best
+    cv = _score("current_offset", 1, base, mode="cv")
+    scorer = _IdentSS({"torque_constant_error": 2745.8, "current_offset": 2740.7})
+    assert simplest_equivalent(best, [cv], [best, cv], 200, cfg, scorer) is best
+    # clearly less held-out gain: not equivalent, the identification fit is not asked
+    weak = _score("current_offset", 1, base * 0.8)
+    assert simplest_equivalent(best, [weak], [best, weak], 200, cfg, scorer) is best
+
+
+def test_materiality_counts_no_more_than_the_corrections_own_energy():
+    """A correction of RMS c removes 2<r, c> - <c, c>; beyond <c, c> the residual only points
+    along it, and the materiality floor does not count that."""
+    from urident.gap.significance import own_shrink_pct
+
+    raw = 100 * (1 - np.sqrt(0.9))                          # removed 0.1 of a unit residual
+    assert own_shrink_pct(1.0, np.sqrt(0.9), np.sqrt(0.1)) == pytest.approx(raw)
+    assert own_shrink_pct(1.0, np.sqrt(0.9), np.sqrt(0.2)) == pytest.approx(raw)
+    # the same removal by a correction of half that energy counts only its own 0.05
+    assert own_shrink_pct(1.0, np.sqrt(0.9), np.sqrt(0.05)) == pytest.approx(100 * (1 - np.sqrt(0.95)))
+    assert own_shrink_pct(1.0, 1.1, 0.3) == pytest.approx(100 * (1 - 1.1))   # worse stays worse
+    assert own_shrink_pct(0.0, 0.0, 0.0) == 0.0
+
+
+def test_a_pair_of_identification_effects_is_found_together_and_none_without_effects(spec):
+    """An offset of joint 4 and load friction of joint 3 in every run: given the load friction,
+    the pair search names the offset as its partner, each significant on top of the other with
+    about its true size; on effect-free runs it finds no pair."""
+    from urident.gap.selection import masked_pair
+
+    eff = ("effects:\n  - name: current_offset\n    joints: [4]\n    offset_a: -0.08\n"
+           "  - name: load_friction\n    joints: [3]\n    coefficient: 0.026\n")
+    for effects, seeds in ((eff, (101, 201)), (None, (102, 202))):
+        ident = simulate(spec, sines(3, duration=60.0), effects, seed=seeds[0])
+        valid = simulate(spec, sines(53, duration=30.0), effects, seed=seeds[1])
+        res = diagnose([ident], [valid], spec, config=FAST)
+        pool = [x.candidate for x in res.steps[0]]
+        lf = next(c for c in pool if (c.effect, c.joint, c.mode) == ("load_friction", 2, "ident"))
+        pair = masked_pair(res.scorer, [], [lf], pool, res.scorer.block, FAST)
+        if effects is None:
+            assert pair is None
+            continue
+        assert pair is not None and all(p.significant for p in pair)
+        got = {(p.candidate.effect, p.candidate.joint): p.fit.coefficients()[p.candidate] for p in pair}
+        assert set(got) == {("current_offset", 3), ("load_friction", 2)}
+        assert got[("load_friction", 2)][0] == pytest.approx(0.026, rel=0.2)
+        assert got[("current_offset", 3)][0] / spec.drive_gains[3] == pytest.approx(-0.08, rel=0.2)
+
 def test_the_logged_target_moment_is_reported_beside_the_identified_model(spec):
     """The controller's model (target moment) on the validation samples: here the robot file's
     rigid-body model, so the identified rigid-body part agrees with it to a small fraction of
