@@ -261,7 +261,8 @@ def test_a_confounded_simpler_explanation_as_good_as_the_best_is_chosen():
 
 
 class _IdentSS:
-    """The one scorer method the tie-break reads: the identification residual after a refit."""
+    """What :func:`urident.gap.selection.settle_ties` reads of a scorer: the identification
+    residual after a refit (per effect), and a fit to score on top of."""
 
     def __init__(self, ss):
         self.ss = ss
@@ -269,30 +270,41 @@ class _IdentSS:
     def ident_ss(self, cands):
         return sum(self.ss[c.effect] for c in cands)
 
+    def evaluate(self, cands):
+        return list(cands)
 
-def test_equivalent_identification_explanations_are_told_apart_by_the_identification_logs():
+
+def test_equivalent_identification_explanations_are_settled_by_the_identification_logs(monkeypatch):
     """Two confounded identification-mode candidates with one column each and held-out gains the
-    data cannot tell apart (a drive-gain error of joint 2 or of its parallel neighbour 3): the one
-    whose refit leaves the smaller identification residual is chosen, whichever has the larger
-    held-out gain; a CV-mode alternative, or no scorer, keeps the best."""
-    from urident.gap.selection import simplest_equivalent
+    data cannot tell apart (a drive-gain error of joint 2 or of its parallel neighbour 3) are
+    ties; a CV-mode or clearly weaker alternative is none. After the selection, the tie whose
+    refit with the other findings leaves the smaller identification residual is kept, when it is
+    significant on top of them."""
+    from urident.gap import selection
+    from urident.gap.selection import identification_ties, settle_ties
 
     rng = np.random.default_rng(1)
     base = 1.0 + rng.normal(0.0, 0.3, 4000)
     cfg = GapConfig(n_boot=300)
     best = _score("torque_constant_error", 1, base * 1.001)
     other = _score("current_offset", 1, base)
-    scorer = _IdentSS({"torque_constant_error": 2745.8, "current_offset": 2740.7})
-    assert simplest_equivalent(best, [other], [best, other], 200, cfg, scorer) is other
-    scorer = _IdentSS({"torque_constant_error": 2740.7, "current_offset": 2745.8})
-    assert simplest_equivalent(best, [other], [best, other], 200, cfg, scorer) is best
-    assert simplest_equivalent(best, [other], [best, other], 200, cfg) is best
     cv = _score("current_offset", 1, base, mode="cv")
-    scorer = _IdentSS({"torque_constant_error": 2745.8, "current_offset": 2740.7})
-    assert simplest_equivalent(best, [cv], [best, cv], 200, cfg, scorer) is best
-    # clearly less held-out gain: not equivalent, the identification fit is not asked
     weak = _score("current_offset", 1, base * 0.8)
-    assert simplest_equivalent(best, [weak], [best, weak], 200, cfg, scorer) is best
+    assert identification_ties(best, [other], [best, other], 200, cfg) == [other.candidate]
+    assert identification_ties(best, [cv, weak], [best, cv, weak], 200, cfg) == []
+    assert identification_ties(cv, [other], [cv, other], 200, cfg) == []
+
+    significant = {"current_offset": True}
+    monkeypatch.setattr(selection, "score_all", lambda sc, base, cands, block, config: [
+        _score(c.effect, c.k, [1.0], significant=significant[c.effect]) for c in cands])
+    ties = {id(best.candidate): [other.candidate]}
+    kept = [best.candidate]
+    lower = _IdentSS({"torque_constant_error": 2745.8, "current_offset": 2740.7})
+    higher = _IdentSS({"torque_constant_error": 2740.7, "current_offset": 2745.8})
+    assert settle_ties(lower, kept, ties, 200, cfg) == [other.candidate]
+    assert settle_ties(higher, kept, ties, 200, cfg) == kept
+    significant["current_offset"] = False       # not significant on top of the other findings
+    assert settle_ties(lower, kept, ties, 200, cfg) == kept
 
 
 def test_materiality_counts_no_more_than_the_corrections_own_energy():

@@ -46,6 +46,7 @@ def select(scorer: Scorer, pool: list[Candidate], block: int, config: GapConfig,
     confounds: list[dict] = []
     current = scorer.evaluate([])
     consistent = False          # phase A (identification consistency) over
+    ties: dict = {}             # id of a finding → its identification-mode ties
     for step in range(config.max_effects + 1):
         taken = {c.key for c in selected}
         free = [c for c in pool if c.key not in taken]
@@ -86,11 +87,12 @@ def select(scorer: Scorer, pool: list[Candidate], block: int, config: GapConfig,
             best = max(preferred or sig, key=lambda s: s.gain)
         if best is not None:
             conf = confounded(best, scores, block, config)
-            simpler = simplest_equivalent(best, conf, scores, block, config, scorer, selected)
+            simpler = simplest_equivalent(best, conf, scores, block, config)
             if simpler is not best:
                 best = simpler
                 conf = confounded(best, scores, block, config)
             taking = [(best, conf)]
+            ties[id(best.candidate)] = identification_ties(best, conf, scores, block, config)
         for chosen, conf in taking:
             confounds += confound_rows(step, chosen, conf)
             findings.append(make_finding(chosen.materialize(), conf, ctx_v, spec, config))
@@ -109,8 +111,10 @@ def select(scorer: Scorer, pool: list[Candidate], block: int, config: GapConfig,
                     again.append(new)
                 pool = again
 
-    if len(selected) > 1:
-        kept = backward(scorer, selected, block, config)
+    kept = backward(scorer, selected, block, config) if len(selected) > 1 else list(selected)
+    kept = settle_ties(scorer, kept, ties, block, config)
+    if kept:
+        pool = pool + [c for c in kept if c not in pool]
         if [id(c) for c in kept] != [id(c) for c in selected]:
             # findings and confounds again, step by step in the kept order
             findings, confounds, current = [], [], scorer.evaluate([])
@@ -202,43 +206,77 @@ def ident_shortlist(scorer: Scorer, selected: list[Candidate], free: list[Candid
 
 
 def simplest_equivalent(best: Score, conf: list[Score], scores: list[Score], block: int,
-                        config: GapConfig, scorer: Scorer | None = None,
-                        selected: list[Candidate] = ()) -> Score:
+                        config: GapConfig) -> Score:
     """Among ``best`` and the candidates confounded with it (:func:`confounded`) that are
     significant and admissible, the one with the fewest fitted columns whose held-out gain the data
     does not tell from ``best``'s in practice: the paired block-bootstrap interval of the
     per-sample difference of their improvements contains 0, or the alternative keeps at least
-    1 − ``parsimony_tol`` of ``best``'s gain. Among the equivalent ones with the fewest columns,
-    when all are identification-mode and ``scorer`` is given, the one whose refit (with the
-    ``selected`` identification-mode candidates) leaves the smallest identification residual;
-    else ``best`` when it is among them, or the largest gain (``best`` stays unless a simpler
-    explanation is as good).
+    1 − ``parsimony_tol`` of ``best``'s gain. Equal column counts keep the larger gain, so
+    ``best`` stays unless a simpler explanation is as good (those of equal columns:
+    :func:`identification_ties`).
 
     Why: the larger one's extra columns also soak up the baseline's own misfit (Occam; the
-    confound is still reported either way); an identification-mode effect claims to act in the
-    identification logs, where it was fitted with the same number of columns: when the held-out
-    data cannot tell two apart, those logs can (a drive-gain error of joint 3 or of its parallel
-    neighbour 2, docs/gap-calibration.md)."""
-    alts = [s for s in conf if s.significant and admissible(s, scores)
-            and s.candidate.k <= best.candidate.k]
-    if not alts:
+    confound is still reported either way; docs/gap-calibration.md)."""
+    equal = _equivalent(best, [s for s in conf if s.candidate.k < best.candidate.k], scores, block, config)
+    if not equal:
         return best
+    return min(equal, key=lambda s: (s.candidate.k, -s.gain))
+
+
+def identification_ties(best: Score, conf: list[Score], scores: list[Score], block: int,
+                        config: GapConfig) -> list[Candidate]:
+    """The identification-mode candidates confounded with an identification-mode ``best`` that
+    have as many columns and a held-out gain the data does not tell from its own (the test of
+    :func:`simplest_equivalent`): the validation run cannot choose among them
+    (:func:`settle_ties` lets the identification logs do it)."""
+    if best.candidate.mode != "ident":
+        return []
+    same = [s for s in conf if s.candidate.mode == "ident" and s.candidate.k == best.candidate.k]
+    return [s.candidate for s in _equivalent(best, same, scores, block, config)]
+
+
+def _equivalent(best: Score, alts: list[Score], scores: list[Score], block: int,
+                config: GapConfig) -> list[Score]:
+    """The significant, admissible ones of ``alts`` whose held-out gain the data does not tell
+    from ``best``'s (:func:`simplest_equivalent`)."""
+    alts = [s for s in alts if s.significant and admissible(s, scores)]
+    if not alts:
+        return []
     if best.d_blocks is not None and all(s.d_blocks is not None for s in alts):
         diffs = np.stack([best.d_blocks - s.d_blocks for s in alts], axis=1)   # block sums
         boot = bootstrap_block_sums(diffs, best.block_counts, config.n_boot, config.seed)
     else:
         diffs = np.stack([best.d - s.d for s in alts], axis=1)
         boot = block_bootstrap_means(diffs, block, config.n_boot, config.seed)
-    equal = [s for i, s in enumerate(alts) if interval(boot[:, i], config.level)[0] <= 0
-             or s.gain >= (1.0 - config.parsimony_tol) * best.gain]
-    if not equal:
-        return best
-    fewest = min(s.candidate.k for s in equal)
-    group = [s for s in [best] + equal if s.candidate.k == fewest]
-    if scorer is not None and len(group) > 1 and all(s.candidate.mode == "ident" for s in group):
-        chosen = [c for c in selected if c.mode == "ident"]
-        return min(group, key=lambda s: (scorer.ident_ss(chosen + [s.candidate]), -s.gain))
-    return best if best in group else max(group, key=lambda s: s.gain)
+    return [s for i, s in enumerate(alts) if interval(boot[:, i], config.level)[0] <= 0
+            or s.gain >= (1.0 - config.parsimony_tol) * best.gain]
+
+
+def settle_ties(scorer: Scorer, kept: list[Candidate], ties: dict, block: int,
+                config: GapConfig) -> list[Candidate]:
+    """``kept`` with each identification-mode finding that had ties (``ties``: id → the
+    candidates of :func:`identification_ties`) replaced by the one of them whose refit, with the
+    other kept identification-mode findings, leaves the smallest identification residual, when
+    that one is still significant on top of the other findings.
+
+    Why: an identification-mode effect claims to act in the identification logs, where it was
+    fitted with as many columns as its ties; when the held-out data cannot tell them apart (a
+    drive-gain error of joint 3 or of its parallel neighbour 2), those logs can, once the other
+    effects they hold are fitted too (alone, another effect there can favour the wrong one;
+    docs/gap-calibration.md)."""
+    out = list(kept)
+    for i, c in enumerate(kept):
+        alts = ties.get(id(c))
+        if not alts:
+            continue
+        others = [o for o in out if o is not c]
+        chosen = [o for o in others if o.mode == "ident"]
+        taken = {o.key for o in others}
+        options = [c] + [a for a in alts if a.key not in taken]
+        pick = min(options, key=lambda x: scorer.ident_ss(chosen + [x]))
+        if pick is not c and score_all(scorer, scorer.evaluate(others), [pick], block, config)[0].significant:
+            out[i] = pick
+    return out
 
 
 def label(s: Score) -> str:
