@@ -292,6 +292,9 @@ def test_equivalent_identification_explanations_are_settled_by_the_identificatio
     weak = _score("current_offset", 1, base * 0.8)
     assert identification_ties(best, [other], [best, other], 200, cfg) == [other.candidate]
     assert identification_ties(best, [cv, weak], [best, cv, weak], 200, cfg) == []
+    # not significant on top of the findings so far: still a tie (settle_ties tests it at the end)
+    insig = _score("current_offset", 1, base, significant=False)
+    assert identification_ties(best, [insig], [best, insig], 200, cfg) == [insig.candidate]
     assert identification_ties(cv, [other], [cv, other], 200, cfg) == []
 
     significant = {"current_offset": True}

@@ -227,19 +227,20 @@ def identification_ties(best: Score, conf: list[Score], scores: list[Score], blo
                         config: GapConfig) -> list[Candidate]:
     """The identification-mode candidates confounded with an identification-mode ``best`` that
     have as many columns and a held-out gain the data does not tell from its own (the test of
-    :func:`simplest_equivalent`): the validation run cannot choose among them
-    (:func:`settle_ties` lets the identification logs do it)."""
+    :func:`simplest_equivalent`), significant or not on top of the findings so far (one may be
+    significant only once the later ones are fitted): the validation run cannot choose among them
+    (:func:`settle_ties` lets the identification logs do it, and tests the one it keeps)."""
     if best.candidate.mode != "ident":
         return []
     same = [s for s in conf if s.candidate.mode == "ident" and s.candidate.k == best.candidate.k]
-    return [s.candidate for s in _equivalent(best, same, scores, block, config)]
+    return [s.candidate for s in _equivalent(best, same, scores, block, config, significant=False)]
 
 
 def _equivalent(best: Score, alts: list[Score], scores: list[Score], block: int,
-                config: GapConfig) -> list[Score]:
-    """The significant, admissible ones of ``alts`` whose held-out gain the data does not tell
-    from ``best``'s (:func:`simplest_equivalent`)."""
-    alts = [s for s in alts if s.significant and admissible(s, scores)]
+                config: GapConfig, significant: bool = True) -> list[Score]:
+    """The admissible ones of ``alts`` (and ``significant`` ones) whose held-out gain the data
+    does not tell from ``best``'s (:func:`simplest_equivalent`)."""
+    alts = [s for s in alts if (s.significant or not significant) and admissible(s, scores)]
     if not alts:
         return []
     if best.d_blocks is not None and all(s.d_blocks is not None for s in alts):
