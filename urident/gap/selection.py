@@ -4,10 +4,12 @@ Greedy forward selection: every candidate of the pool is scored on top of the cu
 (:func:`urident.gap.significance.score_all`); the best significant one is kept and the others are
 tested again on top, until none is significant (or ``max_effects``). Phase A first makes the
 identification consistent (identification-mode candidates short-listed by their in-sample gain,
-:func:`ident_shortlist`); phase B takes any candidate by its held-out gain. None at the first step:
-"no unmodelled effect found". Then the backward half (:func:`backward`): each chosen effect is
+:func:`ident_shortlist`; when none is significant alone, a pair significant each on top of the
+other, :func:`masked_pair`); phase B takes any candidate by its held-out gain. None at the first
+step: "no unmodelled effect found". Then the backward half (:func:`backward`): each chosen effect is
 tested again on top of the others; those no longer significant are dropped, and the findings are
-ordered by their unique contribution.
+ordered by their unique contribution; an identification-mode finding whose ties the validation
+run could not tell apart keeps the one the identification logs fit best (:func:`settle_ties`).
 
 Confounds: a candidate of another effect (or joint) whose correction correlates with the chosen
 one's (uncentred) by |ρ| ≥ ``confound_corr`` and whose improvement interval overlaps the chosen
