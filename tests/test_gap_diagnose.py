@@ -324,6 +324,39 @@ def test_materiality_counts_no_more_than_the_corrections_own_energy():
     assert own_shrink_pct(0.0, 0.0, 0.0) == 0.0
 
 
+def test_an_identification_effect_is_material_where_its_refit_mends_when_those_logs_hold_it():
+    """A drive-gain error of joint 4 (index 3) mends joints 2 and 3 through the base parameters:
+    the largest own-energy shrink on another joint where the correction is aligned counts, one
+    pointing along a larger misfit (projection above the limit) does not; and the in-sample shrink
+    of the identification logs tells whether they hold the effect."""
+    from types import SimpleNamespace
+
+    from urident.gap.significance import ident_shrink_pct, own_shrink_pct, spill_shrink_pct
+
+    rms0 = np.array([0.2, 0.263, 0.258, 0.201, 0.189, 0.204])
+    rms1 = np.array([0.2, 0.217, 0.212, 0.198, 0.189, 0.204])
+    crms = np.array([0.0, 0.156, 0.158, 0.045, 0.0, 0.0])
+    spill = spill_shrink_pct(rms0, rms1, crms, 3, 1000, 1.5)
+    assert spill == pytest.approx(max(own_shrink_pct(rms0[k], rms1[k], crms[k]) for k in (1, 2)))
+    assert spill > 15
+    # joint 3 (index 2) holds 3 times its correction along it, joint 2's correction is tiny
+    far = np.array([0.0, 0.01, 0.05, 0.045, 0.0, 0.0])
+    assert spill_shrink_pct(rms0, rms1, far, 3, 1000, 1.5) < 3
+    # the own joint never counts here
+    assert spill_shrink_pct(rms0, rms1, crms, 1, 1000, 1.5) == pytest.approx(
+        max(own_shrink_pct(rms0[k], rms1[k], crms[k]) for k in (2, 3)))
+
+    c = SimpleNamespace(joint=3, mode="ident", effect="torque_constant_error")
+    r = np.zeros((100, 6))
+    r[:, 3] = 1.0                                             # joint 4's identification residual: 100
+    held = _IdentSS({"torque_constant_error": -19.0})         # removes 19 of it: 10 %
+    held.ident = SimpleNamespace(residual=r)
+    assert ident_shrink_pct(held, [], c) == pytest.approx(100 * (1 - np.sqrt(0.81)))
+    none = _IdentSS({"torque_constant_error": 0.0})
+    none.ident = held.ident
+    assert ident_shrink_pct(none, [], c) == 0.0
+
+
 def test_a_pair_of_identification_effects_is_found_together_and_none_without_effects(spec):
     """An offset of joint 4 and load friction of joint 3 in every run: given the load friction,
     the pair search names the offset as its partner, each significant on top of the other with
