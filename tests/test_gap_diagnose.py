@@ -259,6 +259,128 @@ def test_a_confounded_simpler_explanation_as_good_as_the_best_is_chosen():
     assert simplest_equivalent(ripple, [offset], [ripple, offset], 200, strict) is ripple
 
 
+
+class _IdentSS:
+    """What :func:`urident.gap.selection.settle_ties` reads of a scorer: the identification
+    residual after a refit (per effect), and a fit to score on top of."""
+
+    def __init__(self, ss):
+        self.ss = ss
+
+    def ident_ss(self, cands):
+        return sum(self.ss[c.effect] for c in cands)
+
+    def evaluate(self, cands):
+        return list(cands)
+
+
+def test_equivalent_identification_explanations_are_settled_by_the_identification_logs(monkeypatch):
+    """Two confounded identification-mode candidates with one column each and held-out gains the
+    data cannot tell apart (a drive-gain error of joint 2 or of its parallel neighbour 3) are
+    ties; a CV-mode or clearly weaker alternative is none. After the selection, the tie whose
+    refit with the other findings leaves the smaller identification residual is kept, when it is
+    significant on top of them."""
+    from urident.gap import selection
+    from urident.gap.selection import identification_ties, settle_ties
+
+    rng = np.random.default_rng(1)
+    base = 1.0 + rng.normal(0.0, 0.3, 4000)
+    cfg = GapConfig(n_boot=300)
+    best = _score("torque_constant_error", 1, base * 1.001)
+    other = _score("current_offset", 1, base)
+    cv = _score("current_offset", 1, base, mode="cv")
+    weak = _score("current_offset", 1, base * 0.8)
+    assert identification_ties(best, [other], [best, other], 200, cfg) == [other.candidate]
+    assert identification_ties(best, [cv, weak], [best, cv, weak], 200, cfg) == []
+    # not significant on top of the findings so far: still a tie (settle_ties tests it at the end)
+    insig = _score("current_offset", 1, base, significant=False)
+    assert identification_ties(best, [insig], [best, insig], 200, cfg) == [insig.candidate]
+    assert identification_ties(cv, [other], [cv, other], 200, cfg) == []
+
+    significant = {"current_offset": True}
+    monkeypatch.setattr(selection, "score_all", lambda sc, base, cands, block, config: [
+        _score(c.effect, c.k, [1.0], significant=significant[c.effect]) for c in cands])
+    ties = {id(best.candidate): [other.candidate]}
+    kept = [best.candidate]
+    lower = _IdentSS({"torque_constant_error": 2745.8, "current_offset": 2740.7})
+    higher = _IdentSS({"torque_constant_error": 2740.7, "current_offset": 2745.8})
+    assert settle_ties(lower, kept, ties, 200, cfg) == [other.candidate]
+    assert settle_ties(higher, kept, ties, 200, cfg) == kept
+    significant["current_offset"] = False       # not significant on top of the other findings
+    assert settle_ties(lower, kept, ties, 200, cfg) == kept
+
+
+def test_materiality_counts_no_more_than_the_corrections_own_energy():
+    """A correction of RMS c removes 2<r, c> - <c, c>; beyond <c, c> the residual only points
+    along it, and the materiality floor does not count that."""
+    from urident.gap.significance import own_shrink_pct
+
+    raw = 100 * (1 - np.sqrt(0.9))                          # removed 0.1 of a unit residual
+    assert own_shrink_pct(1.0, np.sqrt(0.9), np.sqrt(0.1)) == pytest.approx(raw)
+    assert own_shrink_pct(1.0, np.sqrt(0.9), np.sqrt(0.2)) == pytest.approx(raw)
+    # the same removal by a correction of half that energy counts only its own 0.05
+    assert own_shrink_pct(1.0, np.sqrt(0.9), np.sqrt(0.05)) == pytest.approx(100 * (1 - np.sqrt(0.95)))
+    assert own_shrink_pct(1.0, 1.1, 0.3) == pytest.approx(100 * (1 - 1.1))   # worse stays worse
+    assert own_shrink_pct(0.0, 0.0, 0.0) == 0.0
+
+
+def test_an_identification_effect_is_material_where_its_refit_mends_when_those_logs_hold_it():
+    """A drive-gain error of joint 4 (index 3) mends joints 2 and 3 through the base parameters:
+    the largest own-energy shrink on another joint where the correction is aligned counts, one
+    pointing along a larger misfit (projection above the limit) does not; and the in-sample shrink
+    of the identification logs tells whether they hold the effect."""
+    from types import SimpleNamespace
+
+    from urident.gap.significance import ident_shrink_pct, own_shrink_pct, spill_shrink_pct
+
+    rms0 = np.array([0.2, 0.263, 0.258, 0.201, 0.189, 0.204])
+    rms1 = np.array([0.2, 0.217, 0.212, 0.198, 0.189, 0.204])
+    crms = np.array([0.0, 0.156, 0.158, 0.045, 0.0, 0.0])
+    spill = spill_shrink_pct(rms0, rms1, crms, 3, 1000, 1.5)
+    assert spill == pytest.approx(max(own_shrink_pct(rms0[k], rms1[k], crms[k]) for k in (1, 2)))
+    assert spill > 15
+    # joint 3 (index 2) holds 3 times its correction along it, joint 2's correction is tiny
+    far = np.array([0.0, 0.01, 0.05, 0.045, 0.0, 0.0])
+    assert spill_shrink_pct(rms0, rms1, far, 3, 1000, 1.5) < 3
+    # the own joint never counts here
+    assert spill_shrink_pct(rms0, rms1, crms, 1, 1000, 1.5) == pytest.approx(
+        max(own_shrink_pct(rms0[k], rms1[k], crms[k]) for k in (2, 3)))
+
+    c = SimpleNamespace(joint=3, mode="ident", effect="torque_constant_error")
+    r = np.zeros((100, 6))
+    r[:, 3] = 1.0                                             # joint 4's identification residual: 100
+    held = _IdentSS({"torque_constant_error": -19.0})         # removes 19 of it: 10 %
+    held.ident = SimpleNamespace(residual=r)
+    assert ident_shrink_pct(held, [], c) == pytest.approx(100 * (1 - np.sqrt(0.81)))
+    none = _IdentSS({"torque_constant_error": 0.0})
+    none.ident = held.ident
+    assert ident_shrink_pct(none, [], c) == 0.0
+
+
+def test_a_pair_of_identification_effects_is_found_together_and_none_without_effects(spec):
+    """An offset of joint 4 and load friction of joint 3 in every run: given the load friction,
+    the pair search names the offset as its partner, each significant on top of the other with
+    about its true size; on effect-free runs it finds no pair."""
+    from urident.gap.selection import masked_pair
+
+    eff = ("effects:\n  - name: current_offset\n    joints: [4]\n    offset_a: -0.08\n"
+           "  - name: load_friction\n    joints: [3]\n    coefficient: 0.026\n")
+    for effects, seeds in ((eff, (101, 201)), (None, (102, 202))):
+        ident = simulate(spec, sines(3, duration=60.0), effects, seed=seeds[0])
+        valid = simulate(spec, sines(53, duration=30.0), effects, seed=seeds[1])
+        res = diagnose([ident], [valid], spec, config=FAST)
+        pool = [x.candidate for x in res.steps[0]]
+        lf = next(c for c in pool if (c.effect, c.joint, c.mode) == ("load_friction", 2, "ident"))
+        pair = masked_pair(res.scorer, [], [lf], pool, res.scorer.block, FAST)
+        if effects is None:
+            assert pair is None
+            continue
+        assert pair is not None and all(p.significant for p in pair)
+        got = {(p.candidate.effect, p.candidate.joint): p.fit.coefficients()[p.candidate] for p in pair}
+        assert set(got) == {("current_offset", 3), ("load_friction", 2)}
+        assert got[("load_friction", 2)][0] == pytest.approx(0.026, rel=0.2)
+        assert got[("current_offset", 3)][0] / spec.drive_gains[3] == pytest.approx(-0.08, rel=0.2)
+
 def test_the_logged_target_moment_is_reported_beside_the_identified_model(spec):
     """The controller's model (target moment) on the validation samples: here the robot file's
     rigid-body model, so the identified rigid-body part agrees with it to a small fraction of

@@ -4,10 +4,12 @@ Greedy forward selection: every candidate of the pool is scored on top of the cu
 (:func:`urident.gap.significance.score_all`); the best significant one is kept and the others are
 tested again on top, until none is significant (or ``max_effects``). Phase A first makes the
 identification consistent (identification-mode candidates short-listed by their in-sample gain,
-:func:`ident_shortlist`); phase B takes any candidate by its held-out gain. None at the first step:
-"no unmodelled effect found". Then the backward half (:func:`backward`): each chosen effect is
+:func:`ident_shortlist`; when none is significant alone, a pair significant each on top of the
+other, :func:`masked_pair`); phase B takes any candidate by its held-out gain. None at the first
+step: "no unmodelled effect found". Then the backward half (:func:`backward`): each chosen effect is
 tested again on top of the others; those no longer significant are dropped, and the findings are
-ordered by their unique contribution.
+ordered by their unique contribution; an identification-mode finding whose ties the validation
+run could not tell apart keeps the one the identification logs fit best (:func:`settle_ties`).
 
 Confounds: a candidate of another effect (or joint) whose correction correlates with the chosen
 one's (uncentred) by |ρ| ≥ ``confound_corr`` and whose improvement interval overlaps the chosen
@@ -46,14 +48,16 @@ def select(scorer: Scorer, pool: list[Candidate], block: int, config: GapConfig,
     confounds: list[dict] = []
     current = scorer.evaluate([])
     consistent = False          # phase A (identification consistency) over
+    ties: dict = {}             # id of a finding → its identification-mode ties
     for step in range(config.max_effects + 1):
         taken = {c.key for c in selected}
         free = [c for c in pool if c.key not in taken]
         scores = score_all(scorer, current, free, block, config)
         steps.append(scores)
-        if step == config.max_effects:
+        if len(selected) >= config.max_effects:
             break
         best = None
+        taking: list[tuple[Score, list[Score]]] = []
         if not consistent:
             # A: an effect present in the identification logs distorts the base parameters and
             # spreads its error over other joints of the validation logs, where a CV-mode
@@ -61,42 +65,58 @@ def select(scorer: Scorer, pool: list[Candidate], block: int, config: GapConfig,
             # identification consistent: short-list the identification-mode candidates by how
             # much they reduce the identification residual on top of those already chosen,
             # and keep the one the validation logs confirm (significant held-out gain).
-            short = {id(c) for c in ident_shortlist(scorer, selected, free, config)}
+            shortlist = ident_shortlist(scorer, selected, free, config)
+            short = {id(c) for c in shortlist}
             sig = [s for s in scores if s.significant and id(s.candidate) in short]
             if sig:
                 best = max(sig, key=lambda s: s.gain)
             else:
-                consistent = True
-        if best is None:
+                # two effects in the identification logs bias each other's fit alone (each
+                # absorbs part of the other's distortion of the base parameters): a pair, each
+                # significant on top of the other, is taken at once
+                pair = masked_pair(scorer, selected, shortlist, free, block, config) \
+                    if len(selected) + 2 <= config.max_effects else None
+                if pair:
+                    taking = [(s, []) for s in pair]
+                else:
+                    consistent = True
+        if best is None and not taking:
             # B: any candidate (identification or CV mode) by its held-out gain alone
             sig = [s for s in scores if s.significant and admissible(s, scores)]
             if not sig:
                 break
             preferred = [s for s in sig if prefer is not None and prefer(s.candidate)]
             best = max(preferred or sig, key=lambda s: s.gain)
-        conf = confounded(best, scores, block, config)
-        simpler = simplest_equivalent(best, conf, scores, block, config)
-        if simpler is not best:
-            best = simpler
+        if best is not None:
             conf = confounded(best, scores, block, config)
-        confounds += confound_rows(step, best, conf)
-        findings.append(make_finding(best.materialize(), conf, ctx_v, spec, config))
-        selected.append(best.candidate)
-        current = best.fit
-        j = best.candidate.joint
-        if fam_of and j is not None and best.candidate.effect in FRICTION_FORMS:
-            taken = {c.key for c in selected}
-            again = []
-            for c in pool:
-                fam = fam_of[id(c)]
-                new = c if c.key in taken or c.joint != j or c.effect not in FRICTION_FORMS \
-                    else choose_variant(fam, scorer, selected, current)
-                fam_of[id(new)] = fam
-                again.append(new)
-            pool = again
+            simpler = simplest_equivalent(best, conf, scores, block, config)
+            if simpler is not best:
+                best = simpler
+                conf = confounded(best, scores, block, config)
+            taking = [(best, conf)]
+            ties[id(best.candidate)] = identification_ties(best, conf, scores, block, config)
+        for chosen, conf in taking:
+            confounds += confound_rows(step, chosen, conf)
+            findings.append(make_finding(chosen.materialize(), conf, ctx_v, spec, config))
+            selected.append(chosen.candidate)
+        current = taking[-1][0].fit if len(taking) == 1 else scorer.evaluate(selected)
+        for chosen, _ in taking:
+            j = chosen.candidate.joint
+            if fam_of and j is not None and chosen.candidate.effect in FRICTION_FORMS:
+                taken = {c.key for c in selected}
+                again = []
+                for c in pool:
+                    fam = fam_of[id(c)]
+                    new = c if c.key in taken or c.joint != j or c.effect not in FRICTION_FORMS \
+                        else choose_variant(fam, scorer, selected, current)
+                    fam_of[id(new)] = fam
+                    again.append(new)
+                pool = again
 
-    if len(selected) > 1:
-        kept = backward(scorer, selected, block, config)
+    kept = backward(scorer, selected, block, config) if len(selected) > 1 else list(selected)
+    kept = settle_ties(scorer, kept, ties, block, config)
+    if kept:
+        pool = pool + [c for c in kept if c not in pool]
         if [id(c) for c in kept] != [id(c) for c in selected]:
             # findings and confounds again, step by step in the kept order
             findings, confounds, current = [], [], scorer.evaluate([])
@@ -117,6 +137,35 @@ def confound_rows(step: int, chosen: Score, conf: list[Score]) -> list[dict]:
     return [{"step": step + 1, "chosen": label(chosen), "alternative": label(other),
              "correlation": float(score_corr(chosen, other)), "gain_nm2": [chosen.gain, other.gain]}
             for other in conf]
+
+
+def masked_pair(scorer: Scorer, selected: list[Candidate], shortlist: list[Candidate], free: list[Candidate],
+                block: int, config: GapConfig) -> list[Score] | None:
+    """Two identification-mode candidates, one of the ``shortlist``, each significant on top of
+    the ``selected`` ones and the other (the tests of :func:`score_all`, as in the backward step),
+    the pair with the largest gain together; their scores (each on top of the other), the larger
+    first, or None.
+
+    Why: an effect fitted alone on identification logs that hold another one absorbs part of the
+    other's distortion of the base parameters; its coefficient is biased and the validation
+    residual holds far more than its correction along it (:func:`urident.gap.significance.aligned`
+    fails for both; seen: an offset of joint 4 with load friction of joint 3, each 2-3 times its
+    correction alone, 0.9 together, docs/gap-calibration.md). Forward selection one effect at a
+    time cannot take either."""
+    alone = {id(s.candidate): s.gain for s in score_all(scorer, scorer.evaluate(selected), shortlist, block, config)}
+    best, best_gain = None, 0.0
+    for a in shortlist:
+        others = [c for c in free if c.mode == "ident" and c.key != a.key]
+        for sb in score_all(scorer, scorer.evaluate(selected + [a]), others, block, config):
+            if not sb.significant or sb.gain <= 0:
+                continue
+            sa = score_all(scorer, scorer.evaluate(selected + [sb.candidate]), [a], block, config)[0]
+            if sa.significant:
+                total = alone[id(a)] + sb.gain
+                if total > best_gain:
+                    best, best_gain = sorted([sa, sb], key=lambda s: -s.gain), total
+                break                       # scores are sorted: the largest valid partner of a
+    return best
 
 
 def backward(scorer: Scorer, selected: list[Candidate], block: int, config: GapConfig) -> list[Candidate]:
@@ -165,25 +214,72 @@ def simplest_equivalent(best: Score, conf: list[Score], scores: list[Score], blo
     does not tell from ``best``'s in practice: the paired block-bootstrap interval of the
     per-sample difference of their improvements contains 0, or the alternative keeps at least
     1 − ``parsimony_tol`` of ``best``'s gain. Equal column counts keep the larger gain, so
-    ``best`` stays unless a simpler explanation is as good.
+    ``best`` stays unless a simpler explanation is as good (those of equal columns:
+    :func:`identification_ties`).
 
     Why: the larger one's extra columns also soak up the baseline's own misfit (Occam; the
     confound is still reported either way; docs/gap-calibration.md)."""
-    alts = [s for s in conf if s.significant and admissible(s, scores)
-            and s.candidate.k < best.candidate.k]
-    if not alts:
+    equal = _equivalent(best, [s for s in conf if s.candidate.k < best.candidate.k], scores, block, config)
+    if not equal:
         return best
+    return min(equal, key=lambda s: (s.candidate.k, -s.gain))
+
+
+def identification_ties(best: Score, conf: list[Score], scores: list[Score], block: int,
+                        config: GapConfig) -> list[Candidate]:
+    """The identification-mode candidates confounded with an identification-mode ``best`` that
+    have as many columns and a held-out gain the data does not tell from its own (the test of
+    :func:`simplest_equivalent`), significant or not on top of the findings so far (one may be
+    significant only once the later ones are fitted): the validation run cannot choose among them
+    (:func:`settle_ties` lets the identification logs do it, and tests the one it keeps)."""
+    if best.candidate.mode != "ident":
+        return []
+    same = [s for s in conf if s.candidate.mode == "ident" and s.candidate.k == best.candidate.k]
+    return [s.candidate for s in _equivalent(best, same, scores, block, config, significant=False)]
+
+
+def _equivalent(best: Score, alts: list[Score], scores: list[Score], block: int,
+                config: GapConfig, significant: bool = True) -> list[Score]:
+    """The admissible ones of ``alts`` (and ``significant`` ones) whose held-out gain the data
+    does not tell from ``best``'s (:func:`simplest_equivalent`)."""
+    alts = [s for s in alts if (s.significant or not significant) and admissible(s, scores)]
+    if not alts:
+        return []
     if best.d_blocks is not None and all(s.d_blocks is not None for s in alts):
         diffs = np.stack([best.d_blocks - s.d_blocks for s in alts], axis=1)   # block sums
         boot = bootstrap_block_sums(diffs, best.block_counts, config.n_boot, config.seed)
     else:
         diffs = np.stack([best.d - s.d for s in alts], axis=1)
         boot = block_bootstrap_means(diffs, block, config.n_boot, config.seed)
-    equal = [s for i, s in enumerate(alts) if interval(boot[:, i], config.level)[0] <= 0
-             or s.gain >= (1.0 - config.parsimony_tol) * best.gain]
-    if not equal:
-        return best
-    return min(equal, key=lambda s: (s.candidate.k, -s.gain))
+    return [s for i, s in enumerate(alts) if interval(boot[:, i], config.level)[0] <= 0
+            or s.gain >= (1.0 - config.parsimony_tol) * best.gain]
+
+
+def settle_ties(scorer: Scorer, kept: list[Candidate], ties: dict, block: int,
+                config: GapConfig) -> list[Candidate]:
+    """``kept`` with each identification-mode finding that had ties (``ties``: id → the
+    candidates of :func:`identification_ties`) replaced by the one of them whose refit, with the
+    other kept identification-mode findings, leaves the smallest identification residual, when
+    that one is still significant on top of the other findings.
+
+    Why: an identification-mode effect claims to act in the identification logs, where it was
+    fitted with as many columns as its ties; when the held-out data cannot tell them apart (a
+    drive-gain error of joint 3 or of its parallel neighbour 2), those logs can, once the other
+    effects they hold are fitted too (alone, another effect there can favour the wrong one;
+    docs/gap-calibration.md)."""
+    out = list(kept)
+    for i, c in enumerate(kept):
+        alts = ties.get(id(c))
+        if not alts:
+            continue
+        others = [o for o in out if o is not c]
+        chosen = [o for o in others if o.mode == "ident"]
+        taken = {o.key for o in others}
+        options = [c] + [a for a in alts if a.key not in taken]
+        pick = min(options, key=lambda x: scorer.ident_ss(chosen + [x]))
+        if pick is not c and score_all(scorer, scorer.evaluate(others), [pick], block, config)[0].significant:
+            out[i] = pick
+    return out
 
 
 def label(s: Score) -> str:
