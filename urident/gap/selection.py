@@ -5,7 +5,10 @@ Greedy forward selection: every candidate of the pool is scored on top of the cu
 tested again on top, until none is significant (or ``max_effects``). Phase A first makes the
 identification consistent (identification-mode candidates short-listed by their in-sample gain,
 :func:`ident_shortlist`; when none is significant alone, a pair significant each on top of the
-other, :func:`masked_pair`); phase B takes any candidate by its held-out gain. None at the first
+other, :func:`masked_pair`); phase B takes any candidate by its held-out gain (an
+identification-mode one under the floor on its own joint when a CV-mode one would otherwise take
+its spill on a neighbour: :func:`urident.gap.significance.spill_of`; the backward step keeps it
+while it fails only materiality). None at the first
 step: "no unmodelled effect found". Then the backward half (:func:`backward`): each chosen effect is
 tested again on top of the others; those no longer significant are dropped, and the findings are
 ordered by their unique contribution; an identification-mode finding whose ties the validation

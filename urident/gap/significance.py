@@ -10,7 +10,9 @@ joint its refit mends most: :func:`spill_shrink_pct`), its coefficients are phys
 in identification mode its joint holds no more than ``ident_max_projection`` times its correction
 along it (:func:`aligned`) and, in CV mode, its correction is material in absolute terms
 (:func:`material_cv`). A CV-mode
-candidate must also beat its identification-mode twin (:func:`admissible`).
+candidate must also beat its identification-mode twin and not re-fit the spill of an
+identification-mode candidate that passed every test but materiality (:func:`admissible`,
+:func:`spill_of`).
 """
 
 from __future__ import annotations
@@ -136,7 +138,9 @@ def ident_shrink_pct(scorer, selected, c) -> float:
 def admissible(s: Score, scores: list[Score], max_projection: float = 1.5) -> bool:
     """A CV-mode candidate claims the effect changed between the runs; it must beat the same
     columns fitted on the identification logs (ident mode) where the catalogue has that mode,
-    else it only re-fits what the identification got wrong."""
+    else it only re-fits what the identification got wrong; and it must not take the spill of
+    another identification-mode candidate (:func:`spill_of`, ``max_projection``: the limit of
+    :func:`aligned`)."""
     c = s.candidate
     if c.mode != "cv":
         return True
