@@ -389,6 +389,28 @@ def test_a_cv_effect_does_not_take_the_spill_of_a_confirmed_identification_error
     assert admissible(offset, [gain, offset])
 
 
+def test_the_backward_step_keeps_a_spill_finding_while_it_fails_only_materiality(monkeypatch):
+    """An identification-mode finding taken for the spill a CV effect would have taken stays while
+    it fails only materiality on top of the others; failing another test drops it, as does
+    failing materiality when it was not taken that way."""
+    from types import SimpleNamespace
+
+    import urident.gap.selection as selection
+
+    warm = _score("thermal_drift", 2, np.full(10, 0.1))
+    gain = _score("torque_constant_error", 1, np.full(10, 0.05), significant=False)
+    tests = {id(warm.candidate): warm, id(gain.candidate): gain}
+    monkeypatch.setattr(selection, "score_all", lambda scorer, cur, pool, block, cfg: [tests[id(pool[0])]])
+    scorer = SimpleNamespace(evaluate=lambda cands: None)
+    both = [warm.candidate, gain.candidate]
+    cfg = GapConfig()
+    gain.short_of_floor = True
+    assert selection.backward(scorer, both, 1, cfg, {id(gain.candidate)}) == [warm.candidate, gain.candidate]
+    assert selection.backward(scorer, both, 1, cfg) == [warm.candidate]
+    gain.short_of_floor = False
+    assert selection.backward(scorer, both, 1, cfg, {id(gain.candidate)}) == [warm.candidate]
+
+
 def test_a_pair_of_identification_effects_is_found_together_and_none_without_effects(spec):
     """An offset of joint 4 and load friction of joint 3 in every run: given the load friction,
     the pair search names the offset as its partner, each significant on top of the other with
