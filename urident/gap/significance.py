@@ -135,12 +135,12 @@ def ident_shrink_pct(scorer, selected, c) -> float:
     return float(100.0 * (1.0 - np.sqrt(max(rr - d, 0.0) / rr))) if rr > 0 and d > 0 else 0.0
 
 
-def admissible(s: Score, scores: list[Score], max_projection: float = 1.5) -> bool:
+def admissible(s: Score, scores: list[Score], max_projection: float | None = None) -> bool:
     """A CV-mode candidate claims the effect changed between the runs; it must beat the same
     columns fitted on the identification logs (ident mode) where the catalogue has that mode,
     else it only re-fits what the identification got wrong; and it must not take the spill of
     another identification-mode candidate (:func:`spill_of`, ``max_projection``: the limit of
-    :func:`aligned`)."""
+    :func:`aligned`, by default the configuration's)."""
     c = s.candidate
     if c.mode != "cv":
         return True
@@ -153,7 +153,7 @@ def admissible(s: Score, scores: list[Score], max_projection: float = 1.5) -> bo
     return s.gain > twin.gain
 
 
-def spill_of(s: Score, scores: list[Score], max_projection: float = 1.5) -> Score | None:
+def spill_of(s: Score, scores: list[Score], max_projection: float | None = None) -> Score | None:
     """The identification-mode score of ``scores`` (same step) whose residual a CV-mode ``s``
     would take, or None: one that passes every test but materiality (``short_of_floor``), has a
     larger held-out gain and mends ``s``'s joint, aligned there, by at least as much as ``s``.
@@ -166,6 +166,8 @@ def spill_of(s: Score, scores: list[Score], max_projection: float = 1.5) -> Scor
     j = s.joint
     if s.rms_before is None or s.rms_after is None:
         return None
+    if max_projection is None:
+        max_projection = GapConfig().ident_max_projection
     mine = float(100.0 * (1.0 - s.rms_after[j] / s.rms_before[j])) if s.rms_before[j] > 0 else 0.0
     best = None
     for o in scores:
