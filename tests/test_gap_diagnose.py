@@ -357,6 +357,60 @@ def test_an_identification_effect_is_material_where_its_refit_mends_when_those_l
     assert ident_shrink_pct(none, [], c) == 0.0
 
 
+def test_a_cv_effect_does_not_take_the_spill_of_a_confirmed_identification_error():
+    """A drive-gain error of joint 4 (index 3) confirmed held out but under the floor on its own
+    joint mends joint 2 (index 1) by ~17 %: a CV offset there explaining 8 % is not admissible
+    (it would re-fit that spill) and the identification candidate is what phase B may take; a
+    candidate that failed another test, a smaller gain, or a joint it mends less does not block."""
+    from urident.gap.significance import admissible, spill_of
+
+    rms0 = np.array([0.2, 0.263, 0.258, 0.201, 0.189, 0.204])
+    gain = _score("torque_constant_error", 1, np.full(10, 0.05), significant=False)
+    gain.joint, gain.rms_before, gain.short_of_floor = 3, rms0, True
+    gain.rms_after = np.array([0.2, 0.217, 0.212, 0.198, 0.189, 0.204])
+    gain.change_rms = np.array([0.0, 0.156, 0.158, 0.045, 0.0, 0.0])
+    offset = _score("current_offset", 1, np.full(10, 0.011), mode="cv")
+    offset.rms_before = rms0
+    offset.rms_after = rms0 * np.array([1, 0.92, 1, 1, 1, 1])
+    assert spill_of(offset, [gain, offset]) is gain
+    assert not admissible(offset, [gain, offset])
+    # pointing along a misfit 3 times its correction on joint 2: no claim there
+    gain.change_rms = np.array([0.0, 0.05, 0.158, 0.045, 0.0, 0.0])
+    assert admissible(offset, [gain, offset])
+    gain.change_rms = np.array([0.0, 0.156, 0.158, 0.045, 0.0, 0.0])
+    # mends joint 2 by less than the offset explains there
+    offset.rms_after = rms0 * np.array([1, 0.7, 1, 1, 1, 1])
+    assert admissible(offset, [gain, offset])
+    offset.rms_after = rms0 * np.array([1, 0.92, 1, 1, 1, 1])
+    # failed a test besides materiality, or a smaller held-out gain: no claim
+    gain.short_of_floor = False
+    assert admissible(offset, [gain, offset])
+    gain.short_of_floor, gain.gain = True, 0.005
+    assert admissible(offset, [gain, offset])
+
+
+def test_the_backward_step_keeps_a_spill_finding_while_it_fails_only_materiality(monkeypatch):
+    """An identification-mode finding taken for the spill a CV effect would have taken stays while
+    it fails only materiality on top of the others; failing another test drops it, as does
+    failing materiality when it was not taken that way."""
+    from types import SimpleNamespace
+
+    import urident.gap.selection as selection
+
+    warm = _score("thermal_drift", 2, np.full(10, 0.1))
+    gain = _score("torque_constant_error", 1, np.full(10, 0.05), significant=False)
+    tests = {id(warm.candidate): warm, id(gain.candidate): gain}
+    monkeypatch.setattr(selection, "score_all", lambda scorer, cur, pool, block, cfg: [tests[id(pool[0])]])
+    scorer = SimpleNamespace(evaluate=lambda cands: None)
+    both = [warm.candidate, gain.candidate]
+    cfg = GapConfig()
+    gain.short_of_floor = True
+    assert selection.backward(scorer, both, 1, cfg, {id(gain.candidate)}) == [warm.candidate, gain.candidate]
+    assert selection.backward(scorer, both, 1, cfg) == [warm.candidate]
+    gain.short_of_floor = False
+    assert selection.backward(scorer, both, 1, cfg, {id(gain.candidate)}) == [warm.candidate]
+
+
 def test_a_pair_of_identification_effects_is_found_together_and_none_without_effects(spec):
     """An offset of joint 4 and load friction of joint 3 in every run: given the load friction,
     the pair search names the offset as its partner, each significant on top of the other with

@@ -43,6 +43,7 @@ class Score:
     d_blocks: np.ndarray | None = field(default=None, repr=False)  # (M,) sums of d per bootstrap block
     block_counts: np.ndarray | None = field(default=None, repr=False)
     change_rms: np.ndarray | None = field(default=None, repr=False)   # (6,) RMS of ``change``
+    short_of_floor: bool = False     # identification mode: every test passed but materiality
 
     def materialize(self) -> "Score":
         """Fill ``change`` and ``d`` (per sample) from the fits (only the scores reported need them)."""

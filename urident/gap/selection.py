@@ -5,7 +5,10 @@ Greedy forward selection: every candidate of the pool is scored on top of the cu
 tested again on top, until none is significant (or ``max_effects``). Phase A first makes the
 identification consistent (identification-mode candidates short-listed by their in-sample gain,
 :func:`ident_shortlist`; when none is significant alone, a pair significant each on top of the
-other, :func:`masked_pair`); phase B takes any candidate by its held-out gain. None at the first
+other, :func:`masked_pair`); phase B takes any candidate by its held-out gain (an
+identification-mode one under the floor on its own joint when a CV-mode one would otherwise take
+its spill on a neighbour: :func:`urident.gap.significance.spill_of`; the backward step keeps it
+while it fails only materiality). None at the first
 step: "no unmodelled effect found". Then the backward half (:func:`backward`): each chosen effect is
 tested again on top of the others; those no longer significant are dropped, and the findings are
 ordered by their unique contribution; an identification-mode finding whose ties the validation
@@ -28,7 +31,7 @@ from urident.gap.config import GapConfig
 from urident.gap.residual import SetContext
 from urident.gap.results import Finding, Score, rms
 from urident.gap.scoring import Fit, Scorer
-from urident.gap.significance import admissible, choose_variant, noise_sigma, score_all
+from urident.gap.significance import admissible, choose_variant, noise_sigma, score_all, spill_of
 from urident.gap.structure import FRICTION_FORMS
 from urident.gap.where import finding_regime
 
@@ -49,6 +52,7 @@ def select(scorer: Scorer, pool: list[Candidate], block: int, config: GapConfig,
     current = scorer.evaluate([])
     consistent = False          # phase A (identification consistency) over
     ties: dict = {}             # id of a finding → its identification-mode ties
+    spilled: set = set()        # ids of identification-mode candidates material by spill_of
     for step in range(config.max_effects + 1):
         taken = {c.key for c in selected}
         free = [c for c in pool if c.key not in taken]
@@ -82,7 +86,14 @@ def select(scorer: Scorer, pool: list[Candidate], block: int, config: GapConfig,
                     consistent = True
         if best is None and not taking:
             # B: any candidate (identification or CV mode) by its held-out gain alone
-            sig = [s for s in scores if s.significant and admissible(s, scores)]
+            mp = config.ident_max_projection
+            sig = [s for s in scores if s.significant and admissible(s, scores, mp)]
+            # an identification error whose spill a CV-mode effect would take is the finding
+            # instead: the neighbour's residual it mends is real structure (spill_of)
+            spills = [spill_of(s, scores, mp) for s in scores if s.significant and s.candidate.mode == "cv"]
+            spills = [o for o in spills if o is not None]
+            spilled.update(id(o.candidate) for o in spills)
+            sig += [o for o in spills if o not in sig]
             if not sig:
                 break
             preferred = [s for s in sig if prefer is not None and prefer(s.candidate)]
@@ -113,7 +124,7 @@ def select(scorer: Scorer, pool: list[Candidate], block: int, config: GapConfig,
                     again.append(new)
                 pool = again
 
-    kept = backward(scorer, selected, block, config) if len(selected) > 1 else list(selected)
+    kept = backward(scorer, selected, block, config, spilled) if len(selected) > 1 else list(selected)
     kept = settle_ties(scorer, kept, ties, block, config)
     if kept:
         pool = pool + [c for c in kept if c not in pool]
@@ -168,7 +179,8 @@ def masked_pair(scorer: Scorer, selected: list[Candidate], shortlist: list[Candi
     return best
 
 
-def backward(scorer: Scorer, selected: list[Candidate], block: int, config: GapConfig) -> list[Candidate]:
+def backward(scorer: Scorer, selected: list[Candidate], block: int, config: GapConfig,
+             spilled=frozenset()) -> list[Candidate]:
     """The backward half of stepwise selection, on the forward pass's choices: each chosen effect
     is tested again on top of all the others (same tests as when it was chosen); the weakest one
     that is no longer significant is dropped, until all are. The kept ones are returned ordered
@@ -181,7 +193,7 @@ def backward(scorer: Scorer, selected: list[Candidate], block: int, config: GapC
             rest = scorer.evaluate([o for o in kept if o is not c])
             tests.append(score_all(scorer, rest, [c], block, config)[0])
         weakest = min(tests, key=lambda s: s.gain)
-        if len(kept) == 1 or weakest.significant:
+        if len(kept) == 1 or weakest.significant or (weakest.short_of_floor and id(weakest.candidate) in spilled):
             return [s.candidate for s in sorted(tests, key=lambda s: -s.gain)]
         kept.remove(weakest.candidate)
 
@@ -242,7 +254,8 @@ def _equivalent(best: Score, alts: list[Score], scores: list[Score], block: int,
                 config: GapConfig, significant: bool = True) -> list[Score]:
     """The admissible ones of ``alts`` (and ``significant`` ones) whose held-out gain the data
     does not tell from ``best``'s (:func:`simplest_equivalent`)."""
-    alts = [s for s in alts if (s.significant or not significant) and admissible(s, scores)]
+    alts = [s for s in alts if (s.significant or not significant)
+            and admissible(s, scores, config.ident_max_projection)]
     if not alts:
         return []
     if best.d_blocks is not None and all(s.d_blocks is not None for s in alts):

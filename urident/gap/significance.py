@@ -10,7 +10,9 @@ joint its refit mends most: :func:`spill_shrink_pct`), its coefficients are phys
 in identification mode its joint holds no more than ``ident_max_projection`` times its correction
 along it (:func:`aligned`) and, in CV mode, its correction is material in absolute terms
 (:func:`material_cv`). A CV-mode
-candidate must also beat its identification-mode twin (:func:`admissible`).
+candidate must also beat its identification-mode twin and not re-fit the spill of an
+identification-mode candidate that passed every test but materiality (:func:`admissible`,
+:func:`spill_of`).
 """
 
 from __future__ import annotations
@@ -77,13 +79,14 @@ def score_all(scorer: Scorer, current: Fit, pool: list[Candidate], block: int,
             spill = spill_shrink_pct(rms0, rms1, change_rms[i], joint, n, config.ident_max_projection)
             if spill >= config.min_shrink_pct and ident_shrink_pct(scorer, sel, c) >= config.min_shrink_pct:
                 mat = spill
-        s.significant = bool(held_out and mat >= config.min_shrink_pct
-                             and plausible(c, f.coefficients()[c], _offset_on(f, c.joint))
-                             and (c.mode != "ident" or aligned(n * float(rms0[joint] ** 2 - rms1[joint] ** 2), n,
-                                                               float(change_rms[i][joint]),
-                                                               config.ident_max_projection))
-                             and (c.mode != "cv" or _material(float(change_rms[i][joint]), sigma[joint],
-                                                              config.cv_min_noise_ratio)))
+        valid = bool(held_out and plausible(c, f.coefficients()[c], _offset_on(f, c.joint))
+                     and (c.mode != "ident" or aligned(n * float(rms0[joint] ** 2 - rms1[joint] ** 2), n,
+                                                       float(change_rms[i][joint]),
+                                                       config.ident_max_projection))
+                     and (c.mode != "cv" or _material(float(change_rms[i][joint]), sigma[joint],
+                                                      config.cv_min_noise_ratio)))
+        s.significant = valid and mat >= config.min_shrink_pct
+        s.short_of_floor = valid and not s.significant and c.mode == "ident"
         out.append(s)
     out.sort(key=lambda s: -s.gain)
     return out
@@ -132,18 +135,50 @@ def ident_shrink_pct(scorer, selected, c) -> float:
     return float(100.0 * (1.0 - np.sqrt(max(rr - d, 0.0) / rr))) if rr > 0 and d > 0 else 0.0
 
 
-def admissible(s: Score, scores: list[Score]) -> bool:
+def admissible(s: Score, scores: list[Score], max_projection: float | None = None) -> bool:
     """A CV-mode candidate claims the effect changed between the runs; it must beat the same
     columns fitted on the identification logs (ident mode) where the catalogue has that mode,
-    else it only re-fits what the identification got wrong."""
+    else it only re-fits what the identification got wrong; and it must not take the spill of
+    another identification-mode candidate (:func:`spill_of`, ``max_projection``: the limit of
+    :func:`aligned`, by default the configuration's)."""
     c = s.candidate
     if c.mode != "cv":
         return True
+    if spill_of(s, scores, max_projection) is not None:
+        return False
     twins = [o for o in scores if o.candidate.mode == "ident" and o.candidate.key == c.key]
     if not twins:
         return True
     twin = max(twins, key=lambda o: o.gain)
     return s.gain > twin.gain
+
+
+def spill_of(s: Score, scores: list[Score], max_projection: float | None = None) -> Score | None:
+    """The identification-mode score of ``scores`` (same step) whose residual a CV-mode ``s``
+    would take, or None: one that passes every test but materiality (``short_of_floor``), has a
+    larger held-out gain and mends ``s``'s joint, aligned there, by at least as much as ``s``.
+
+    Why: an identification-mode candidate is fitted on other data; when the validation run
+    confirms it (held out) but its own joint cannot size it (an effect in the identification logs
+    that distorted the base parameters the joints share: its correction lands on the
+    neighbours), a CV-mode effect fitted on a neighbour only re-fits that spill, the wrong cause
+    (docs/gap-calibration.md)."""
+    j = s.joint
+    if s.rms_before is None or s.rms_after is None:
+        return None
+    if max_projection is None:
+        max_projection = GapConfig().ident_max_projection
+    mine = float(100.0 * (1.0 - s.rms_after[j] / s.rms_before[j])) if s.rms_before[j] > 0 else 0.0
+    best = None
+    for o in scores:
+        if not o.short_of_floor or o.gain <= s.gain or o.change_rms is None or o.joint == j:
+            continue
+        r0, r1, ck = float(o.rms_before[j]), float(o.rms_after[j]), float(o.change_rms[j])
+        if not aligned(r0 ** 2 - r1 ** 2, 1, ck, max_projection):
+            continue
+        if own_shrink_pct(r0, r1, ck) >= mine and (best is None or o.gain > best.gain):
+            best = o
+    return best
 
 
 def noise_sigma(r: np.ndarray) -> np.ndarray:
