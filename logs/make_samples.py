@@ -5,6 +5,10 @@ Offline simulation of the shipped UR5 identification and validation trajectories
 post-hoc analysis needs (time, q, q̇, currents, temperatures) to keep them small. The simulation's ground truth is dropped from the sidecars, as a real log would have none.
 
     python logs/make_samples.py
+
+The shipped sample_*.csv were made from the UR5 pair before its regeneration on 2026-12-03 (issue 33);
+made from the current pair, tests/test_sim_gap.py's drive-term recovery on them misses its 10 % on
+joint 1's damping (5.89 against 5.0 N·m·s/rad), so they are not replaced yet.
 """
 
 from __future__ import annotations

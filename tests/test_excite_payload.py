@@ -131,13 +131,13 @@ def test_shipped_payload_trajectory_is_safe_with_its_tool_and_within_the_trackin
 
 
 def _low_torque_ident(tmp_path: Path) -> Path:
-    """ur10e_ident.yaml with the torque limits at half the robot's: safe on the empty flange, not with
-    a 10 kg tool (the shoulder and elbow carry its gravity)."""
+    """ur10e_ident.yaml with the torque limits at 0.6 of the robot's: safe on the empty flange and with
+    1 kg, not with a 10 kg tool (the shoulder and elbow carry its gravity)."""
     doc = yaml.safe_load(IDENT.read_text())
     for key in ("q_min_rad", "q_max_rad", "qd_max_rad_s", "qdd_max_rad_s2", "tau_max_nm"):
         doc["limits"].pop(key)
-    doc["limits"]["torque_fraction"] = 0.5
-    out = tmp_path / "ident_half_torque.yaml"
+    doc["limits"]["torque_fraction"] = 0.6
+    out = tmp_path / "ident_low_torque.yaml"
     out.write_text(yaml.safe_dump(doc, sort_keys=False))
     return out
 
