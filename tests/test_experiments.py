@@ -42,13 +42,11 @@ def test_identification_and_validation_trajectories_differ():
 
 @pytest.mark.parametrize("kind", ["ident", "valid"])
 @pytest.mark.parametrize("robot", available_robots())
-def test_servo_lag_stays_inside_the_tracking_monitor(robot, kind, request):
+def test_servo_lag_stays_inside_the_tracking_monitor(robot, kind):
     """servoJ with the default lookahead lags the command by about q̇ · lookahead; the fastest
     joint must stay inside the session's default tracking-error limit, or a run aborts."""
     from urident.session.config import MonitorConfig, ServoConfig
 
-    if (robot, kind) == ("ur5e", "ident"):  # 0.8 of a π rad/s joint, as before this check: 2.51 rad/s
-        request.applymarker(pytest.mark.xfail(strict=True, reason="ur5e_ident.yaml lags 0.251 rad"))
     traj = load_trajectory(EXPERIMENTS / f"{robot}_{kind}.yaml").trajectory
     _, qd, _ = traj.evaluate(np.linspace(0.0, traj.duration, 20001))
     lag = np.abs(qd).max() * ServoConfig().lookahead_time_s
