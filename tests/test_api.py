@@ -231,3 +231,26 @@ def test_the_excite_help_states_the_librarys_payload_defaults():
     r = subprocess.run([sys.executable, "-m", "urident", "excite", "--help"], capture_output=True, text=True,
                        cwd=REPO, check=True)
     assert f"within {design.payload_velocity_cap():.2f} rad/s" in " ".join(r.stdout.split())
+
+
+def test_max_velocity_bounds_every_joint_and_is_recorded(tmp_path, capsys):
+    """--max-velocity caps |q̇| of every joint below the velocity fraction's bound (the shipped files
+    of fast-wristed arms use it for servoJ's lag), and the file records it; a bad value is one line."""
+    from urident.excitation import load_trajectory
+
+    out = tmp_path / "capped.yaml"
+    args = ["excite", "--robot", "ur3e", "--out", str(out), "--harmonics", "2", "--duration", "6", "--reduced",
+            "--seed", "4", "--starts", "1", "--iterations", "3", "--quiet"]
+    assert main(args + ["--max-velocity", "0.4"]) == 0
+    f = load_trajectory(out)
+    _, qd, _ = f.trajectory.evaluate(np.linspace(0.0, f.trajectory.duration, 4001))
+    assert np.abs(qd).max() <= 0.4 * (1 + 1e-5)  # enforced on a sample grid: between samples a hair above
+    assert f.optimization["max_velocity_rad_s"] == 0.4
+    free = tmp_path / "free.yaml"
+    assert main(args[:4] + [str(free)] + args[5:]) == 0
+    _, qd_free, _ = load_trajectory(free).trajectory.evaluate(np.linspace(0.0, 6.0, 4001))
+    assert np.abs(qd_free).max() > 0.4 and "max_velocity_rad_s" not in load_trajectory(free).optimization
+    capsys.readouterr()
+    assert main(args + ["--max-velocity", "-1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "--max-velocity" in err and len(err.splitlines()) == 1

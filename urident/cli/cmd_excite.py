@@ -56,6 +56,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help=f"|q̇| ≤ fraction · robot limit (default 0.8; {PAYLOAD_VELOCITY_FRACTION} with "
                         "--for-payload, which also keeps |q̇| within 2.25 rad/s: servoJ's lag inside "
                         "the session's tracking monitor)")
+    p.add_argument("--max-velocity", type=options.positive_float, default=None, metavar="RAD_S",
+                   help="also keep every joint's |q̇| within this [rad/s] (e.g. 2.2 on a fast wrist: servoJ's "
+                        "0.1 s lag stays inside the session's 0.25 rad tracking monitor; default none, "
+                        "2.25 with --for-payload)")
     p.add_argument("--acceleration-fraction", type=options.fraction, default=None,
                    help="|q̈| ≤ fraction · robot limit (default 1.0)")
     p.add_argument("--torque-fraction", type=options.fraction, default=None,
@@ -102,7 +106,8 @@ def run(args: argparse.Namespace) -> int:
                         criterion=args.criterion, reduced=args.reduced, seed=args.seed, q0=args.q0,
                         starts=args.starts, iterations=args.iterations, budget_s=args.budget, margins=margins,
                         for_payload=args.for_payload, payload=payload, tool=args.tool_capsule,
-                        payload_source=payload_source, tool_source=tool_source, progress=progress)
+                        payload_source=payload_source, tool_source=tool_source,
+                        max_velocity_rad_s=args.max_velocity, progress=progress)
     except HarmonicRateError as exc:
         raise ConfigError(exc.message("--")) from None
     except ToolSizeError:

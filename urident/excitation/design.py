@@ -43,6 +43,12 @@ def payload_velocity_cap() -> float:
     return PAYLOAD_LAG_SHARE * MonitorConfig().max_tracking_error_rad / ServoConfig().lookahead_time_s
 
 
+def _velocity_cap(max_velocity_rad_s: float | None, for_payload: bool) -> float | None:
+    """The optimiser's |q̇| bound: the caller's, and with ``for_payload`` at most :func:`payload_velocity_cap`."""
+    caps = [v for v in (max_velocity_rad_s, payload_velocity_cap() if for_payload else None) if v is not None]
+    return min(caps) if caps else None
+
+
 class HarmonicRateError(ConfigError):
     """The highest harmonic is too fast for the robot's controller rate (fewer than
     :data:`SAMPLES_PER_PERIOD` ticks per period)."""
@@ -124,8 +130,9 @@ class ExcitationDesign:
         if s.budget_s is not None:
             out["budget_s"] = s.budget_s
         if s.for_payload:
-            out.update(for_payload=True, arm_joint_fraction=s.arm_joint_fraction,
-                       max_velocity_rad_s=s.max_velocity_rad_s)
+            out.update(for_payload=True, arm_joint_fraction=s.arm_joint_fraction)
+        if s.max_velocity_rad_s is not None:
+            out["max_velocity_rad_s"] = s.max_velocity_rad_s
         return out
 
     def document(self, path: str | Path | None = None) -> dict:
@@ -190,10 +197,11 @@ def design(robot: str | Path | RobotSpec, *, harmonics: int = 5, duration_s: flo
            q0=None, starts: int | None = None, iterations: int | None = None, budget_s: float | None = None,
            margins: Mapping[str, float] | None = None, for_payload: bool = False, payload=None,
            tool: ToolCapsule | None = None, payload_source: str = "payload", tool_source: str | None = None,
-           progress: Callable[[str], None] | None = None) -> ExcitationDesign:
+           max_velocity_rad_s: float | None = None, progress: Callable[[str], None] | None = None) -> ExcitationDesign:
     """Optimise, check and return an excitation design (see :func:`urident.design_excitation`;
     ``payload`` is a :class:`urident.ident.payload.Payload`, ``*_source`` say where the payload and
-    tool came from in the file's header)."""
+    tool came from in the file's header; ``max_velocity_rad_s`` bounds every joint's |q̇| besides the
+    margins', :func:`payload_velocity_cap` with ``for_payload``)."""
     robot_file = None
     if isinstance(robot, RobotSpec):
         spec = robot
@@ -223,7 +231,7 @@ def design(robot: str | Path | RobotSpec, *, harmonics: int = 5, duration_s: flo
         settings = ExcitationSettings(harmonics=harmonics, duration_s=duration_s, periods=periods,
                                       criterion=criterion, reduced=reduced, seed=seed, margins=Margins(**overrides),
                                       for_payload=for_payload,
-                                      max_velocity_rad_s=payload_velocity_cap() if for_payload else None)
+                                      max_velocity_rad_s=_velocity_cap(max_velocity_rad_s, for_payload))
         chosen = {"q0": None if q0 is None else tuple(q0), "starts": starts, "iterations": iterations,
                   "budget_s": budget_s}
         settings = replace(settings, **{k: v for k, v in chosen.items() if v is not None})
