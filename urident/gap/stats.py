@@ -70,22 +70,51 @@ class IdentFactors:
     def __init__(self, ctx, cands):
         self.cands = list(cands)
         self.p = p = ctx.n_params
-        cols, idx, slices, _ = _compact(self.cands, ctx, p)
+        slices, col = {}, p
+        for c in self.cands:
+            slices[c] = slice(col, col + c.k)
+            col += c.k
         r = ctx.residual
-        m = {j: p + (0 if cols[j] is None else cols[j].shape[1]) + 1 for j in range(6)}
-        fac = {j: np.zeros((0, m[j])) for j in range(6)}
+        fac, idx = {}, {}
+        later: dict[int, dict[int, np.ndarray]] = {j: {} for j in range(6)}   # multi-joint rows kept
         with one_blas_thread():
-            for a, b, blocks in ctx.chunks():
-                for j in range(6):
+            # one joint at a time, so only its candidate columns are held: the identification-mode
+            # pool of a 10-minute set is gigabytes (docs/scale.md); the design is rebuilt per joint
+            # unless the set keeps it
+            for j in range(6):
+                parts, index = [], []
+                for i, c in enumerate(self.cands):
+                    if c.on_joint is not None:
+                        got = joint_parts(c, ctx) if c.joint == j else []
+                    elif j == 0:
+                        got = []
+                        for jj, x in joint_parts(c, ctx):
+                            if jj == 0:
+                                got.append((jj, x))
+                            else:
+                                later[jj][i] = x
+                    else:
+                        got = [(j, later[j].pop(i))] if i in later[j] else []
+                    for _, x in got:
+                        parts.append(x)
+                        index.append(np.arange(slices[c].start, slices[c].stop))
+                m = p + sum(x.shape[1] for x in parts) + 1
+                f = np.zeros((0, m))
+                for a, b, blocks in ctx.chunks():
                     # [current factor; W_j | C_j | r_j of the chunk], filled in place (one copy)
-                    top = fac[j].shape[0]
-                    x = np.empty((top + b - a, m[j]))
-                    x[:top] = fac[j]
+                    top = f.shape[0]
+                    x = np.empty((top + b - a, m))
+                    x[:top] = f
                     x[top:, :p] = blocks[:, j, :]
-                    if cols[j] is not None:
-                        x[top:, p:-1] = cols[j][a:b]
+                    at = p
+                    for part in parts:
+                        x[top:, at:at + part.shape[1]] = part[a:b]
+                        at += part.shape[1]
                     x[top:, -1] = r[a:b, j]
-                    fac[j] = triangle(x, m[j])
+                    f = triangle(x, m)
+                fac[j] = f
+                idx[j] = np.concatenate(index) if index else np.zeros(0, int)
+                parts = None
         self.factors = fac
         # where each candidate's columns sit in each joint's factor
         self.where = {c: {} for c in self.cands}
