@@ -121,17 +121,17 @@ def test_a_term_that_makes_the_directions_differ_needs_both_directions(spec, one
         assert min(sel.joints[4].steps[0].by_direction) > 0
 
 
-def thermal_run(spec, effect: bool):
-    """A 10 s run whose joint temperatures drift up by 4-12 °C; with ``effect``, joint 3's friction
-    follows them through the simulated controller's thermal_drift effect (viscous −2 %/°C,
-    Coulomb −1 %/°C relative to the first sample, no hidden warm-up)."""
+def thermal_run(spec, effect: bool, rise_c=(8.0, 10.0, 12.0, 6.0, 5.0, 4.0)):
+    """A 10 s run whose joint temperatures drift up by ``rise_c`` (4-12 °C); with ``effect``, joint
+    3's friction follows them through the simulated controller's thermal_drift effect (viscous
+    −2 %/°C, Coulomb −1 %/°C relative to the first sample, no hidden warm-up)."""
     from dataclasses import replace
 
     from urident.simcontroller.effects import load_effects, parse_effects_text
 
     rec, qdd, _ = synthetic_recording(spec, duration_s=10.0, rate_hz=125.0, seed=5)
     n = len(rec)
-    temps = 30.0 + np.array([8.0, 10.0, 12.0, 6.0, 5.0, 4.0]) * np.linspace(0.0, 1.0, n)[:, None]
+    temps = 30.0 + np.array(rise_c) * np.linspace(0.0, 1.0, n)[:, None]
     current = rec.current
     if effect:
         es = load_effects(parse_effects_text(
@@ -169,6 +169,42 @@ def test_temperature_terms_chosen_where_friction_follows_the_temperature(spec, t
     assert predict_recordings(back, rec, spec).validation().rms_nm[2] < 0.3
     with pytest.raises(ConfigError, match="no \\(finite\\) joint temperature"):
         predict_recordings(back, replace(rec, temperature=None), spec)
+
+
+def test_temperature_terms_offered_only_where_the_temperature_moved(spec):
+    """A joint whose temperature moved less than MIN_TEMPERATURE_SPAN_C gets no temperature term
+    (what it would fit is any slow drift, extrapolated once the temperature leaves that span)."""
+    from urident.ident import PreprocessConfig, prepare
+    from urident.ident.friction_select import MIN_TEMPERATURE_SPAN_C
+
+    assert MIN_TEMPERATURE_SPAN_C == 1.0
+    data = prepare([thermal_run(spec, True, (0.5, 0.5, 12.0, 0.5, 0.5, 0.5))], spec, PreprocessConfig())
+    sel = select_friction(spec, data, ModelConfig(reduced=True), dahl_grid=(2e-4,))
+    assert sel.temperature_joints == (2,)
+    chosen = temperature_terms(sel.model)
+    assert chosen[2] and not any(chosen[j] for j in (0, 1, 3, 4, 5))
+    assert "joint temperature: offered on J3 (moved >= 1 °C" in sel.text()
+    assert sel.to_dict()["temperature_joints"] == [3]
+    # the same effect on joint 3, its temperature moving 0.5 °C: nothing offered anywhere
+    still = prepare([thermal_run(spec, True, (0.5,) * 6)], spec, PreprocessConfig())
+    sel = select_friction(spec, still, ModelConfig(reduced=True), dahl_grid=(2e-4,))
+    assert sel.temperature_joints == () and not any(temperature_terms(sel.model))
+    assert "not offered: no joint's temperature moved 1 °C" in sel.text()
+    assert sel.to_dict()["temperature_span_c"][2] == pytest.approx(0.5, abs=0.01)
+
+
+def test_fold_test_takes_a_gain_on_every_fold_whatever_its_spread():
+    """The term rule's fold test: mean > MIN_T standard errors, or a gain on every fold."""
+    from urident.ident.friction_select import MIN_T, fold_test
+
+    spread = np.array([4.5, 0.6, 0.2, 0.4, 0.02])      # one fold holds most of the gain
+    t, every, ok = fold_test(spread)
+    assert t < MIN_T and every and ok
+    t, every, ok = fold_test(np.r_[spread[:4], -0.02])  # and one fold loses
+    assert t < MIN_T and not every and not ok
+    t, every, ok = fold_test(np.array([1.0, 1.1, 0.9, 1.0, -0.05]))
+    assert t > MIN_T and not every and ok
+    assert not fold_test(np.array([0.1]))[2]             # one fold is no evidence
 
 
 def test_temperature_not_offered_without_it_and_never_filled(spec, gaz_data):

@@ -8,7 +8,8 @@ asymmetry |z|, Gaz et al.'s sigmoid with a velocity offset (linearised: tanh(q̇
 (linear viscous is in the base set), load-dependent Coulomb and position-dependent Coulomb
 friction at harmonics 1-3 of the joint angle, and, when every log carries joint temperatures,
 viscous and Coulomb friction changing with the temperature (q̇·(T − T_ref), z·(T − T_ref), T_ref
-each joint's mean temperature in the data); the Dahl presliding state is a choice of the joint's
+each joint's mean temperature in the data; offered on a joint only where its temperature moved by
+at least :data:`MIN_TEMPERATURE_SPAN_C` in the data); the Dahl presliding state is a choice of the joint's
 Coulomb state (below), not a term beside it. Choices and measurements:
 ``docs/friction-selection.md``.
 
@@ -26,7 +27,9 @@ Procedure, for each Coulomb state of the base model (tanh, ε = the model's; a D
 
 A term joins joint j when the per-fold decrease of joint j's held-out mean square error has a mean
 above :data:`MIN_T` standard errors of its fold-to-fold spread (a paired test over the folds:
-a fold's difficulty cancels, what stays is whether the term helps consistently) and lowers
+a fold's difficulty cancels, what stays is whether the term helps consistently), or is positive
+on every fold (a sign test: a friction term that matters near velocity reversals gains most in
+the folds that hold them, and that spread must not count against it; :func:`fold_test`) and lowers
 joint j's held-out RMS by at least :data:`MIN_GAIN` (a gain below the noise of the choice itself
 is not worth a parameter). A term that makes the two directions of motion differ
 (:data:`DIRECTIONAL`: offset, |z|, the sigmoid's offset column) must also lower joint j's held-out
@@ -55,6 +58,10 @@ DAHL_GRID = (5e-5, 7e-5, 1e-4, 1.5e-4, 2e-4, 3e-4, 5e-4)   # [rad] presliding di
 SIGMOID_EPS = (0.05, 0.2)
 STRIBECK_VS = (0.02, 0.05, 0.1)       # [rad/s]
 HARMONICS = (1, 2, 3)                 # periods per joint revolution
+# [°C] least span of a joint's temperature for its temperature terms: friction changes by 1-2 %/°C,
+# so a smaller span moves it less than the MIN_GAIN a term must earn, and what such a term fits is
+# any other slow drift of the run, extrapolated as soon as the temperature leaves that span
+MIN_TEMPERATURE_SPAN_C = 1.0
 MIN_T = 2.0          # mean fold gain / its standard error (≈ 95 % one-sided with 5 folds)
 MIN_GAIN = 0.005     # relative held-out RMS decrease of the joint
 MAX_TERMS = 6        # per joint
@@ -99,6 +106,14 @@ def joint_feature(feature: str, t_ref: np.ndarray | None, j: int) -> str:
     return term_text(feature, float(t_ref[j])) if feature in TEMPERATURE_FEATURES else feature
 
 
+def temperature_offered(data: Prepared) -> np.ndarray:
+    """(6,) whether each joint's temperature terms are offered: the logs carry temperatures and the
+    joint's moved by at least :data:`MIN_TEMPERATURE_SPAN_C` over the data."""
+    if data.temperature is None:
+        return np.zeros(6, dtype=bool)
+    return np.ptp(data.temperature, axis=0) >= MIN_TEMPERATURE_SPAN_C
+
+
 def reference_temperatures(data: Prepared) -> np.ndarray | None:
     """(6,) each joint's mean logged temperature [°C] to 0.1 °C (None without temperatures)."""
     return None if data.temperature is None else np.round(np.mean(data.temperature, axis=0), 1)
@@ -124,6 +139,7 @@ class Step:
     rms_after: float
     t_stat: float
     by_direction: tuple[float, float] | None = None
+    every_fold: bool = False         # the term lowered the held-out error of every fold
 
     @property
     def gain_pct(self) -> float:
@@ -149,6 +165,12 @@ class FrictionSelection:
     family: tuple[str, ...]
     folds: int
     t_ref: tuple[float, ...] | None = None   # per joint [°C]; None: the logs carry no joint temperature
+    t_span: tuple[float, ...] | None = None  # per joint, how far its temperature moved in the data [°C]
+
+    @property
+    def temperature_joints(self) -> tuple[int, ...]:
+        """The joints (0-based) whose temperature terms were offered."""
+        return () if self.t_span is None else tuple(j for j, v in enumerate(self.t_span) if v >= MIN_TEMPERATURE_SPAN_C)
 
     @property
     def mean_rms_nm(self) -> float:
@@ -156,19 +178,18 @@ class FrictionSelection:
 
     def text(self) -> str:
         lines = [f"friction terms chosen per joint by {self.folds}-fold blocked CV on the identification "
-                 f"data (a term kept when its fold gains have mean > {MIN_T:g} standard errors and the "
+                 f"data (a term kept when its fold gains have mean > {MIN_T:g} standard errors or are positive "
+                 f"on every fold, and the "
                  f"joint's held-out RMS falls >= {100 * MIN_GAIN:g} %; a term that makes the two directions "
                  "of motion differ also lowers the held-out error of each direction's samples)",
                  f"  terms tried per joint: {'; '.join(self.family)}",
-                 "  joint temperature: " + ("not offered: the logs carry no joint temperature" if self.t_ref is None
-                                            else "offered, T_ref [°C] per joint (the data's mean): "
-                                            + " ".join(f"{v:g}" for v in self.t_ref)),
+                 "  joint temperature: " + self._temperature_text(),
                  "  Coulomb states tried, each joint's held-out RMS [N·m] after its selection (the state with the "
                  "lowest mean is shared; a joint takes its own best when that passes the term rule):"]
         lines += [f"    {b:<18}" + " ".join(f"{v:6.3f}" for v in r) for b, r in self.bases]
         for j, c in enumerate(self.joints):
             chosen = ", ".join(f"{s.term} ({s.rms_before:.3f} -> {s.rms_after:.3f}, -{s.gain_pct:.1f} %, "
-                               f"t {s.t_stat:.1f})" for s in c.steps) or "none"
+                               f"t {s.t_stat:.1f}{', every fold' if s.every_fold else ''})" for s in c.steps) or "none"
             rej = ("" if c.rejected is None else
                    f"; best rejected: {c.rejected.term} ({-c.rejected.gain_pct:+.1f} %, t {c.rejected.t_stat:.1f}"
                    + ("" if c.rejected.by_direction is None or min(c.rejected.by_direction) > 0 else
@@ -177,9 +198,21 @@ class FrictionSelection:
         lines.append(f"  mean CV RMS {self.mean_rms_nm:.3f} N·m")
         return "\n".join(lines)
 
+    def _temperature_text(self) -> str:
+        if self.t_ref is None:
+            return "not offered: the logs carry no joint temperature"
+        spans = "span [°C] per joint " + " ".join(f"{v:g}" for v in self.t_span)
+        if not self.temperature_joints:
+            return f"not offered: no joint's temperature moved {MIN_TEMPERATURE_SPAN_C:g} °C ({spans})"
+        return (f"offered on {', '.join(f'J{j + 1}' for j in self.temperature_joints)} (moved >= "
+                f"{MIN_TEMPERATURE_SPAN_C:g} °C; {spans}), T_ref [°C] per joint (the data's mean): "
+                + " ".join(f"{v:g}" for v in self.t_ref))
+
     def to_dict(self) -> dict:
         return {"model": self.model.as_dict(), "folds": self.folds, "family": list(self.family),
                 "temperature_ref_c": None if self.t_ref is None else list(self.t_ref),
+                "temperature_span_c": None if self.t_span is None else list(self.t_span),
+                "temperature_joints": [j + 1 for j in self.temperature_joints],
                 "bases": {b: [float(v) for v in r] for b, r in self.bases}, "mean_cv_rms_nm": self.mean_rms_nm,
                 "joints": [{"coulomb": c.coulomb, "terms": [s.term for s in c.steps], "cv_rms_nm": c.rms,
                             "steps": [vars(s) | {"gain_pct": s.gain_pct, "by_direction": None if s.by_direction is None
@@ -299,8 +332,9 @@ def _solve(r: np.ndarray) -> np.ndarray:
     return x / scale
 
 
-def _select(fac: _Factors, terms: tuple[Term, ...]) -> tuple[list[list[str]], list[JointChoice]]:
-    """Greedy forward selection of each joint's terms (module doc)."""
+def _select(fac: _Factors, terms: tuple[Term, ...], offered: np.ndarray) -> tuple[list[list[str]], list[JointChoice]]:
+    """Greedy forward selection of each joint's terms (module doc); ``offered`` (6,): the joints
+    whose temperature terms are tried."""
     sels: list[list[str]] = [[] for _ in range(6)]
     steps: list[list[Step]] = [[] for _ in range(6)]
     rejected: list[Step | None] = [None] * 6
@@ -318,7 +352,8 @@ def _select(fac: _Factors, terms: tuple[Term, ...]) -> tuple[list[list[str]], li
                 base_sq[f, j], by_dir = fac.candidate(f, j, sels[j], ow[j], w[j])
                 base_dir[j] += by_dir
                 for t in terms:
-                    if any(x in sels[j] for x in t.features):
+                    if any(x in sels[j] for x in t.features) or (
+                            not offered[j] and any(x in TEMPERATURE_FEATURES for x in t.features)):
                         continue
                     if f == 0:
                         cand[j].append((t, np.zeros(fac.folds), np.zeros(2)))
@@ -332,16 +367,14 @@ def _select(fac: _Factors, terms: tuple[Term, ...]) -> tuple[list[list[str]], li
             best: tuple[float, Step] | None = None
             best_any: Step | None = None
             for t, sq, sq_dir in cand[j]:
-                d = (base_sq[:, j] - sq) / fac.n_test
-                se = np.std(d, ddof=1) / np.sqrt(len(d)) if len(d) > 1 else np.inf
-                t_stat = float(np.mean(d) / se) if se > 0 else (np.inf if np.mean(d) > 0 else 0.0)
+                t_stat, every, consistent = fold_test((base_sq[:, j] - sq) / fac.n_test)
                 by_dir = (tuple(float(v) for v in base_dir[j] - sq_dir)
                           if any(parse_term(x)[0] in DIRECTIONAL for x in t.features
                                  if x not in TEMPERATURE_FEATURES) else None)
-                step = Step(t.label, float(before), float(np.sqrt(sq.sum() / n)), t_stat, by_dir)
+                step = Step(t.label, float(before), float(np.sqrt(sq.sum() / n)), t_stat, by_dir, every)
                 if best_any is None or step.rms_after < best_any.rms_after:
                     best_any = step
-                if t_stat > MIN_T and step.gain_pct >= 100 * MIN_GAIN and (by_dir is None or min(by_dir) > 0):
+                if consistent and step.gain_pct >= 100 * MIN_GAIN and (by_dir is None or min(by_dir) > 0):
                     if best is None or step.rms_after < best[0]:
                         best = (step.rms_after, step)
             if best is None or len(steps[j]) >= MAX_TERMS:
@@ -357,6 +390,17 @@ def _select(fac: _Factors, terms: tuple[Term, ...]) -> tuple[list[list[str]], li
     return sels, [(tuple(steps[j]), rejected[j], float(rms[j])) for j in range(6)], sq / fac.n_test[:, None]
 
 
+def fold_test(d: np.ndarray) -> tuple[float, bool, bool]:
+    """Whether per-fold gains ``d`` (held-out mean square error before − after) are consistent:
+    their mean is above :data:`MIN_T` standard errors, or they are positive on every fold (a
+    sign test, p = 2^−folds: one fold's large gain widens the spread without being evidence
+    against the term). Returns the t statistic, every fold positive, and the verdict."""
+    se = np.std(d, ddof=1) / np.sqrt(len(d)) if len(d) > 1 else np.inf
+    t_stat = float(np.mean(d) / se) if se > 0 else (np.inf if np.mean(d) > 0 else 0.0)
+    every = bool(len(d) > 1 and np.all(d > 0))
+    return t_stat, every, t_stat > MIN_T or every
+
+
 def _coulomb_states(rms: np.ndarray, mse: np.ndarray) -> np.ndarray:
     """(6,) index of each joint's Coulomb state: the one with the lowest mean held-out RMS over
     joints, unless a joint's own best passes the term rule against it (``rms`` (S, 6); ``mse``
@@ -366,9 +410,8 @@ def _coulomb_states(rms: np.ndarray, mse: np.ndarray) -> np.ndarray:
     pick = np.full(6, shared)
     for j in range(6):
         own = int(np.argmin(rms[:, j]))
-        d = mse[shared, :, j] - mse[own, :, j]
-        se = np.std(d, ddof=1) / np.sqrt(len(d))
-        if own != shared and se > 0 and np.mean(d) / se > MIN_T and rms[own, j] <= (1 - MIN_GAIN) * rms[shared, j]:
+        passes = fold_test(mse[shared, :, j] - mse[own, :, j])[2]
+        if own != shared and passes and rms[own, j] <= (1 - MIN_GAIN) * rms[shared, j]:
             pick[j] = own
     return pick
 
@@ -395,13 +438,14 @@ def select_friction(spec, data: Prepared, model: ModelConfig | None = None, fold
     model = model or ModelConfig(reduced=True)
     bases = base_models(model, dahl_grid)
     t_ref = reference_temperatures(data)
+    offered = temperature_offered(data)
     results = []
     with Progress("friction selection (Coulomb states)", len(bases)) as progress:
         for label, base in bases:
-            terms = family(base, t_ref is not None)
+            terms = family(base, bool(offered.any()))
             fac = _Factors(spec, base, terms, data, folds)
             with one_blas_thread():
-                sels, joints, mse = _select(fac, terms)
+                sels, joints, mse = _select(fac, terms, offered)
             results.append((label, base, sels, joints, mse))
             progress.advance(1)
     rms = np.array([[j[2] for j in r[3]] for r in results])     # (bases, 6)
@@ -415,5 +459,6 @@ def select_friction(spec, data: Prepared, model: ModelConfig | None = None, fold
     final = cross_validate(spec, data, chosen, "joint", "ols", folds).rms_nm
     joints = tuple(JointChoice(states[j], *results[b][3][j][:2], float(final[j])) for j, b in enumerate(pick))
     return FrictionSelection(chosen, joints, tuple((r[0], rms[k]) for k, r in enumerate(results)),
-                             tuple(t.label for t in family(bases[0][1], t_ref is not None)), folds,
-                             None if t_ref is None else tuple(float(v) for v in t_ref))
+                             tuple(t.label for t in family(bases[0][1], bool(offered.any()))), folds,
+                             None if t_ref is None else tuple(float(v) for v in t_ref),
+                             None if t_ref is None else tuple(round(float(v), 2) for v in np.ptp(data.temperature, axis=0)))
