@@ -143,12 +143,13 @@ def fit_sessions(spec, data: Prepared, model, weighting: str = "joint", folds: i
     """Shared parameters and per-session nuisance terms (module doc): returns the data with every
     kept term removed from the measured torque (identify on it for the shared model) and the
     :class:`SessionTerms`. A term enters per joint and kind for all non-reference sessions at once,
-    when its CV gain passes :data:`urident.ident.friction_select.MIN_T` / ``MIN_GAIN``."""
+    when its CV gain passes the friction terms' rule (:func:`urident.ident.friction_select.fold_test`
+    and ``MIN_GAIN``)."""
     from dataclasses import replace as dc_replace
 
     from urident.errors import ConfigError
     from urident.ident.estimate_ols import estimate_ols_reduced
-    from urident.ident.friction_select import MIN_GAIN, MIN_T
+    from urident.ident.friction_select import MIN_GAIN, fold_test
     from urident.ident.identify import identify
     from urident.ident.reduced import Accumulator, ReducedLS, merge, triangle
 
@@ -220,20 +221,18 @@ def fit_sessions(spec, data: Prepared, model, weighting: str = "joint", folds: i
             for (jj, kind), sc in trial.items():
                 if jj != j:
                     continue
-                d = base[:, j] - sc[:, j]
-                se = np.std(d, ddof=1) / np.sqrt(folds)
-                t = float(np.mean(d) / se) if se > 0 else 0.0
+                t, _, passes = fold_test(base[:, j] - sc[:, j])
                 gain = 100.0 * (1.0 - np.sqrt(np.sum(sc[:, j] * n_test) / np.sum(base[:, j] * n_test)))
                 if best is None or gain > best[2]:
-                    best = (j, kind, gain, t)
-            if best is not None and best[3] > MIN_T and best[2] >= 100 * MIN_GAIN:
+                    best = (j, kind, gain, t, passes)
+            if best is not None and best[4] and best[2] >= 100 * MIN_GAIN:
                 sel.append((j, best[1]))
-                chosen.append(best)
+                chosen.append(best[:4])
                 added = True
             else:
                 open_.discard(j)
                 if best is not None:
-                    tried.append(best)
+                    tried.append(best[:4])
         if added:
             base = score(sel)
         else:
