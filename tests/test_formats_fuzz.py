@@ -128,8 +128,14 @@ def test_a_key_written_twice_is_always_rejected(tmp_path, params_text, name, pic
         return (value == "" or nxt is None or indent(nxt) <= indent(k)) and \
             value.count("[") == value.count("]") and value.count("{") == value.count("}")
 
+    # lines that start inside a flow collection wrapped over several lines are not block entries
+    depth, inside = 0, []
+    for line in lines:
+        inside.append(depth > 0)
+        code = line.split("#", 1)[0]
+        depth += code.count("{") + code.count("[") - code.count("}") - code.count("]")
     entries = [i for i, line in enumerate(lines) if re.match(r"^\s*[A-Za-z_][\w.]*:(\s|$)", line)
-               and not line.lstrip().startswith("-") and whole(i)]
+               and not line.lstrip().startswith("-") and not inside[i] and whole(i)]
     i = entries[pick % len(entries)]
     key = lines[i].split(":", 1)[0].strip()
     copy = " " * indent(i) + f"{key}: 1\n"
