@@ -379,13 +379,19 @@ def _optimize(spec: RobotSpec, settings: ExcitationSettings | None, progress: Ca
     for s in finalists:  # on the polish's grid (the finer one)
         x = problem.project(s.x[None])
         c_val, coll_val, tau_val = (float(v[0]) for v in fine.objective(x))
-        results.append((c_val + PENALTY_WEIGHT * (coll_val + tau_val), s, x[0]))
+        key, final = c_val + PENALTY_WEIGHT * (coll_val + tau_val), None
+        if settings.select == "finalised":
+            # ranked as written: collision-free without the search's buffer (shrunk if need be)
+            final = _finalise(problem, spec, x[0])
+            c_val, _, tau_val = (float(v[0]) for v in fine.objective(final[2][None]))
+            key = c_val + PENALTY_WEIGHT * tau_val
+        results.append((key, s, x[0], final))
         say(f"start {s.key + 1}: {_show(settings, c_val)}, penalty {coll_val + tau_val:.3g}, "
             + _convergence(settings, s).describe(settings.criterion))
     results.sort(key=lambda r: r[0])
     best = results[0][1]
     convergence = _convergence(settings, best)
-    trajectory, min_distance = _finalise(problem, spec, results[0][2])
+    trajectory, min_distance, _ = results[0][3] or _finalise(problem, spec, results[0][2])
     t = sample_times(settings.duration_s, spec.controller_rate_hz)
     dense = evaluate_criteria(spec, problem.base, *trajectory.evaluate(t))
     coarse = evaluate_criteria(spec, problem.base, *trajectory.evaluate(fine.basis_criterion.t))
@@ -434,7 +440,8 @@ def _convergence(settings: ExcitationSettings, start: _Start) -> Convergence:
                        settings.window)
 
 
-def _finalise(problem: ExcitationProblem, spec: RobotSpec, x: np.ndarray) -> tuple[FourierTrajectory, float]:
+def _finalise(problem: ExcitationProblem, spec: RobotSpec,
+              x: np.ndarray) -> tuple[FourierTrajectory, float, np.ndarray]:
     """Project onto the limits at the controller rate; shrink towards q0 until the dense numpy
     collision check passes (q0 itself is collision-free, so this terminates)."""
     t = sample_times(problem.settings.duration_s, spec.controller_rate_hz)
@@ -446,7 +453,7 @@ def _finalise(problem: ExcitationProblem, spec: RobotSpec, x: np.ndarray) -> tup
         q = trajectory.evaluate(t)[0]
         d = problem.capsules.distances(spec, q)[:, problem.checked]
         if np.all(d >= required):
-            return trajectory, float(d.min())
+            return trajectory, float(d.min()), x * shrink
     raise RuntimeError("could not make the trajectory collision-free")  # pragma: no cover
 
 

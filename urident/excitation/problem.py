@@ -69,6 +69,7 @@ class ExcitationSettings:
     hop_from: str = "best"                # 'chains': restart i from the best of the chain begun at finalist i
     hop_direction: str = "random"         # 'eigen': along the gradients of log λ of Λ's 4 smallest and largest
     deepen_evaluations: int = 0           # the best still falling at the iteration limit continues while fewer
+    select: str = "objective"             # 'finalised': the finalists ranked as written (collision-free, no buffer)
     polish: int = 2                       # then the best this many continue on the criterion on
     polish_samples: int = 100             # this many samples (the search's is coarser: cheaper)
     budget_s: float | None = None         # wall-time cap of the search [s]; None: until converged
@@ -105,6 +106,8 @@ class ExcitationSettings:
             raise ValueError(f"screen must be 'fixed' or 'halving', not {self.screen!r}")
         if self.hop_direction not in ("random", "eigen"):
             raise ValueError(f"hop_direction must be 'random' or 'eigen', not {self.hop_direction!r}")
+        if self.select not in ("objective", "finalised"):
+            raise ValueError(f"select must be 'objective' or 'finalised', not {self.select!r}")
         if self.hop_from not in ("best", "chains"):
             raise ValueError(f"hop_from must be 'best' or 'chains', not {self.hop_from!r}")
         if not self.tolerance >= 0:
