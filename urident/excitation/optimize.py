@@ -18,6 +18,9 @@ Method (measured against L-BFGS-B with forward differences and a smooth bound of
   (docs/excitation.md). None for a single start (``starts=1``: that start alone, quick). The best
   of all is polished: the best ``polish`` continue on the criterion on ``polish_samples`` samples
   (the search's ``criterion_samples`` are fewer: cheaper, but its optimum is 1–2.5 % worse there).
+  The finalists are ranked by that penalised objective, whose collision part includes the search's
+  buffer; ``select='finalised'`` ranks each as written instead (made collision-free at the controller
+  rate without the buffer, the criterion plus the torque penalty), see docs/excitation.md.
 * Starts run in ``workers`` spawned processes with one BLAS thread each, and so does this process (``workers=0``, the
   default for a single start: in this process). On a shared machine, threaded BLAS made the small matrix products of one evaluation
   10-70 times slower (eigh of 52×52: 58 ms against 0.7 ms). Every start's result is independent of
@@ -308,18 +311,11 @@ def _optimize(spec: RobotSpec, settings: ExcitationSettings | None, progress: Ca
         try:
             screen = min(settings.screen_iterations, settings.iterations)
             if len(starts) > settings.finalists and screen > 0:
-                screened = starts
-                while True:  # once; 'halving': the best half on to twice the iterations, and again
-                    ended = {s.key: s for s in runner.run([s for s in screened if not s.done], screen, deadline)}
-                    screened = [ended.get(s.key, s) for s in screened]
-                    starts = [ended.get(s.key, s) for s in starts]
-                    ranked = sorted(screened, key=lambda s: s.objective)
-                    say(f"{len(screened)} starts after {screen} iterations: best {_show(settings, ranked[0].objective)}, "
-                        f"worst {_show(settings, ranked[-1].objective)} ({time.perf_counter() - start_time:.1f} s)")
-                    if settings.screen != "halving" or len(screened) // 2 <= settings.finalists:
-                        break
-                    screened, screen = ranked[: len(screened) // 2], min(2 * screen, settings.iterations)
-                say(f"continuing the best {settings.finalists}")
+                starts = runner.run(starts, screen, deadline)
+                ranked = sorted(starts, key=lambda s: s.objective)
+                say(f"{len(starts)} starts after {screen} iterations: best {_show(settings, ranked[0].objective)}, "
+                    f"worst {_show(settings, ranked[-1].objective)}; continuing the best {settings.finalists} "
+                    f"({time.perf_counter() - start_time:.1f} s)")
                 finalists = ranked[: settings.finalists]
             else:
                 finalists = starts
@@ -329,37 +325,17 @@ def _optimize(spec: RobotSpec, settings: ExcitationSettings | None, progress: Ca
                 finalists = [ended.get(s.key, s) for s in finalists]
                 starts = [ended.get(s.key, s) for s in starts]
             best = min(finalists, key=lambda s: s.objective)
-            # 'chains': restart i continues the chain begun at finalist i (other basins than the best's)
-            chains = sorted(finalists, key=lambda s: s.objective) if settings.hop_from == "chains" else [best]
             rng = np.random.default_rng(settings.seed + _HOP_SEED_OFFSET)  # its own: the candidates stay
             rounds = settings.hop_rounds if settings.hops and settings.starts > 1 else 0  # a single start: alone
             for round_ in range(rounds):
                 if ((deadline is not None and time.monotonic() >= deadline)
                         or sum(s.evaluations for s in starts) >= settings.hop_evaluations):
                     break
-                origins = [chains[i % len(chains)] for i in range(settings.hops)]
-                hops = runner.run(_hops(problem, settings, origins, len(starts), rng), settings.iterations, deadline)
+                hops = runner.run(_hops(problem, settings, best, len(starts), rng), settings.iterations, deadline)
                 say(f"perturbed restarts of the best, round {round_ + 1}: "
                     f"{', '.join(_show(settings, h.objective) for h in hops)}")
                 finalists, starts = finalists + hops, starts + hops
                 best = min([best] + hops, key=lambda s: s.objective)
-                if settings.hop_from == "chains":
-                    for i, h in enumerate(hops):
-                        c = i % len(chains)
-                        chains[c] = min(chains[c], h, key=lambda s: s.objective)
-                else:
-                    chains = [best]
-            used = sum(s.evaluations for s in starts)
-            if (best.reason == "iterations" and used < settings.deepen_evaluations
-                    and (deadline is None or time.monotonic() < deadline)):
-                # still falling at the iteration limit: the evaluations left continue it (≈ 2 per iteration)
-                more = (settings.deepen_evaluations - used) // 2
-                deeper = runner.run([best], len(best.history) + more, deadline)[0]
-                say(f"the best continued {len(deeper.history) - len(best.history)} iterations: "
-                    f"{_show(settings, deeper.objective)}")
-                finalists = [deeper if s.key == best.key else s for s in finalists]
-                starts = [deeper if s.key == best.key else s for s in starts]
-                best = deeper
             if settings.polish and (deadline is None or time.monotonic() < deadline):
                 # at most min(_POLISH_ITERATIONS, iterations) more, on the finer grid
                 chosen = sorted(finalists, key=lambda s: s.objective)[: settings.polish]
@@ -379,14 +355,14 @@ def _optimize(spec: RobotSpec, settings: ExcitationSettings | None, progress: Ca
     for s in finalists:  # on the polish's grid (the finer one)
         x = problem.project(s.x[None])
         c_val, coll_val, tau_val = (float(v[0]) for v in fine.objective(x))
-        key, final = c_val + PENALTY_WEIGHT * (coll_val + tau_val), None
+        key, final, written = c_val + PENALTY_WEIGHT * (coll_val + tau_val), None, ""
         if settings.select == "finalised":
             # ranked as written: collision-free without the search's buffer (shrunk if need be)
             final = _finalise(problem, spec, x[0])
-            c_val, _, tau_val = (float(v[0]) for v in fine.objective(final[2][None]))
-            key = c_val + PENALTY_WEIGHT * tau_val
+            c_fin, _, tau_fin = (float(v[0]) for v in fine.objective(final[2][None]))
+            key, written = c_fin + PENALTY_WEIGHT * tau_fin, f" (as written {_show(settings, c_fin)})"
         results.append((key, s, x[0], final))
-        say(f"start {s.key + 1}: {_show(settings, c_val)}, penalty {coll_val + tau_val:.3g}, "
+        say(f"start {s.key + 1}: {_show(settings, c_val)}, penalty {coll_val + tau_val:.3g}{written}, "
             + _convergence(settings, s).describe(settings.criterion))
     results.sort(key=lambda r: r[0])
     best = results[0][1]
@@ -410,25 +386,11 @@ def _optimize(spec: RobotSpec, settings: ExcitationSettings | None, progress: Ca
                             time.process_time() - cpu_start + (sum(s.cpu_s for s in starts) if workers else 0.0))
 
 
-def _hops(problem: ExcitationProblem, settings: ExcitationSettings, origins: list[_Start], first_key: int,
+def _hops(problem: ExcitationProblem, settings: ExcitationSettings, best: _Start, first_key: int,
           rng: np.random.Generator) -> list[_Start]:
-    """A new start from each of ``origins``, each coefficient scaled by 1 + ``hop_scale``·N(0, 1),
+    """``settings.hops`` new starts from ``best``, each coefficient scaled by 1 + ``hop_scale``·N(0, 1),
     then projected onto the limits and shrunk until collision-free."""
-    shape = origins[0].x.shape
-    if settings.hop_direction == "eigen":
-        # a step of hop_scale·|x| raising the 4 smallest eigenvalues of Λ and lowering the largest, mixed at random
-        b = problem.n_columns
-        rows = []
-        for o in origins:
-            d = problem.eigenvalue_gradients(o.x, [0, 1, 2, 3, b - 1])
-            d /= np.linalg.norm(d.reshape(len(d), -1), axis=1)[:, None, None]
-            c = np.abs(rng.standard_normal(len(d)))
-            c[-1] = -c[-1]
-            u = np.tensordot(c, d, axes=1)
-            rows.append(o.x + settings.hop_scale * np.linalg.norm(o.x) * u / np.linalg.norm(u))
-        x = np.stack(rows)
-    else:
-        x = np.stack([o.x for o in origins]) * (1.0 + settings.hop_scale * rng.standard_normal((len(origins), *shape)))
+    x = best.x * (1.0 + settings.hop_scale * rng.standard_normal((settings.hops, *best.x.shape)))
     x = problem.shrink_to_collision_free(problem.project(x))
     return [_Start(first_key + i, x[i]) for i in range(settings.hops)]
 

@@ -56,8 +56,6 @@ class ExcitationSettings:
     candidates: int = 64                  # random feasible points scored before optimising
     starts: int = 8                       # BFGS runs from the best candidates, screened ...
     screen_iterations: int = 60           # ... for this many iterations each, then
-    screen: str = "fixed"                 # 'halving': the best half continue to twice the iterations, until
-                                          # at most 2·finalists are left (successive halving)
     finalists: int = 2                    # the best of them continued until converged
     iterations: int = 1000                # at most this many BFGS iterations per start in all
     tolerance: float = 2e-3               # converged: the objective fell less than this over
@@ -66,9 +64,6 @@ class ExcitationSettings:
     hop_rounds: int = 4                   # at most this many rounds, each from the best so far, each
     hop_scale: float = 0.3                # coefficient scaled by 1 + hop_scale·N(0, 1); a round starts
     hop_evaluations: int = 9000           # only while the search used fewer evaluations (none: 1 start)
-    hop_from: str = "best"                # 'chains': restart i from the best of the chain begun at finalist i
-    hop_direction: str = "random"         # 'eigen': along the gradients of log λ of Λ's 4 smallest and largest
-    deepen_evaluations: int = 0           # the best still falling at the iteration limit continues while fewer
     select: str = "objective"             # 'finalised': the finalists ranked as written (collision-free, no buffer)
     polish: int = 2                       # then the best this many continue on the criterion on
     polish_samples: int = 100             # this many samples (the search's is coarser: cheaper)
@@ -98,18 +93,11 @@ class ExcitationSettings:
         if self.polish < 0 or self.polish_samples < 1:
             raise ValueError(f"polish must not be negative and polish_samples positive, not {self.polish} and "
                              f"{self.polish_samples}")
-        if min(self.hops, self.hop_rounds, self.hop_evaluations, self.deepen_evaluations) < 0 or not self.hop_scale >= 0:
-            raise ValueError(f"hops, hop_rounds, hop_evaluations, deepen_evaluations and hop_scale must not be "
-                             f"negative, not {self.hops}, {self.hop_rounds}, {self.hop_evaluations}, "
-                             f"{self.deepen_evaluations} and {self.hop_scale}")
-        if self.screen not in ("fixed", "halving"):
-            raise ValueError(f"screen must be 'fixed' or 'halving', not {self.screen!r}")
-        if self.hop_direction not in ("random", "eigen"):
-            raise ValueError(f"hop_direction must be 'random' or 'eigen', not {self.hop_direction!r}")
+        if min(self.hops, self.hop_rounds, self.hop_evaluations) < 0 or not self.hop_scale >= 0:
+            raise ValueError(f"hops, hop_rounds, hop_evaluations and hop_scale must not be negative, not "
+                             f"{self.hops}, {self.hop_rounds}, {self.hop_evaluations} and {self.hop_scale}")
         if self.select not in ("objective", "finalised"):
             raise ValueError(f"select must be 'objective' or 'finalised', not {self.select!r}")
-        if self.hop_from not in ("best", "chains"):
-            raise ValueError(f"hop_from must be 'best' or 'chains', not {self.hop_from!r}")
         if not self.tolerance >= 0:
             raise ValueError(f"tolerance must not be negative, not {self.tolerance}")
         if self.budget_s is not None and not self.budget_s > 0:
@@ -279,26 +267,6 @@ class ExcitationProblem:
         value = crit + PENALTY_WEIGHT * (coll + torque_pen) + KINEMATIC_WEIGHT * kin
         grad = grad + PENALTY_WEIGHT * g_coll + KINEMATIC_WEIGHT * g_kin
         return float(value), grad.ravel()
-
-    def eigenvalue_gradients(self, x: np.ndarray, which: list[int]) -> np.ndarray:
-        """(len(which), 6, K): the gradient of log λ_i of Λ (eigenvalues ascending, i in ``which``) in
-        the coefficients x (6, K), the criterion's chain of :meth:`value_and_gradient` with one eigenvalue."""
-        basis = self.basis_criterion
-        dq, qd, qdd = (a[0] for a in basis.evaluate(x[None]))
-        n = dq.shape[0]
-        states = perturbed_states(dq + self.q0, qd, qdd, STATE_STEP)
-        blocks = regressor_blocks(self.spec, *(s.reshape(-1, 6) for s in states)).reshape(len(states[0]), n, 6, -1)
-        theta = blocks[0] @ self.column_map
-        flat_theta = theta.reshape(-1, self.n_columns)
-        inv = 1.0 / self.scales
-        lam = (flat_theta.T @ flat_theta) / n * inv[:, None] * inv[None, :]
-        eig, vec = scipy.linalg.eigh(lam, driver="evr")
-        out = []
-        for i in which:
-            w_mat = np.outer(vec[:, i], vec[:, i]) / max(eig[i], 1e-300)
-            adjoint = ((2.0 / n) * (theta @ (inv[:, None] * w_mat * inv[None, :]))) @ self.column_map.T
-            out.append(chain(basis, state_derivatives(np.einsum("kjp,skjp->sk", adjoint, blocks), STATE_STEP)))
-        return np.stack(out)
 
     def kinematic_penalty_gradient(self, x: np.ndarray) -> tuple[float, np.ndarray]:
         """:meth:`kinematic_penalty` of one coefficient set (6, K) and its gradient (6, K)."""
