@@ -394,6 +394,20 @@ def test_perturbed_restarts_keep_the_best_and_stop_at_the_evaluation_cap(ur5):
             ExcitationSettings(**bad)
 
 
+def test_finalised_selection_ranks_the_finalists_as_written(ur5):
+    # the same search; 'finalised' ranks each finalist after it is made collision-free without the
+    # search's buffer, so what is written is never worse on the criterion grid than the default's pick
+    settings = ExcitationSettings(**{**SMALL, "starts": 2, "finalists": 1, "screen_iterations": 4, "hop_rounds": 2},
+                                  seed=6, workers=0, collision_buffer_m=0.015)
+    plain = optimize_excitation(ur5, settings)
+    chosen = optimize_excitation(ur5, replace(settings, select="finalised"))
+    assert chosen.history == plain.history
+    assert chosen.coarse_criteria.cond_theta <= plain.coarse_criteria.cond_theta * (1 + 1e-9)
+    assert check_trajectory(ur5, chosen.trajectory, limits=chosen.limits).ok
+    with pytest.raises(ValueError, match="select"):
+        ExcitationSettings(select="penalty")
+
+
 def test_polish_continues_the_best_on_the_finer_criterion_grid(ur5):
     # the search's criterion is on criterion_samples; the polish continues the best on polish_samples,
     # (within the start's iteration limit), and the reported coarse criterion and the iteration count

@@ -18,6 +18,9 @@ Method (measured against L-BFGS-B with forward differences and a smooth bound of
   (docs/excitation.md). None for a single start (``starts=1``: that start alone, quick). The best
   of all is polished: the best ``polish`` continue on the criterion on ``polish_samples`` samples
   (the search's ``criterion_samples`` are fewer: cheaper, but its optimum is 1–2.5 % worse there).
+  The finalists are ranked by that penalised objective, whose collision part includes the search's
+  buffer; ``select='finalised'`` ranks each as written instead (made collision-free at the controller
+  rate without the buffer, the criterion plus the torque penalty), see docs/excitation.md.
 * Starts run in ``workers`` spawned processes with one BLAS thread each, and so does this process (``workers=0``, the
   default for a single start: in this process). On a shared machine, threaded BLAS made the small matrix products of one evaluation
   10-70 times slower (eigh of 52×52: 58 ms against 0.7 ms). Every start's result is independent of
@@ -352,13 +355,19 @@ def _optimize(spec: RobotSpec, settings: ExcitationSettings | None, progress: Ca
     for s in finalists:  # on the polish's grid (the finer one)
         x = problem.project(s.x[None])
         c_val, coll_val, tau_val = (float(v[0]) for v in fine.objective(x))
-        results.append((c_val + PENALTY_WEIGHT * (coll_val + tau_val), s, x[0]))
-        say(f"start {s.key + 1}: {_show(settings, c_val)}, penalty {coll_val + tau_val:.3g}, "
+        key, final, written = c_val + PENALTY_WEIGHT * (coll_val + tau_val), None, ""
+        if settings.select == "finalised":
+            # ranked as written: collision-free without the search's buffer (shrunk if need be)
+            final = _finalise(problem, spec, x[0])
+            c_fin, _, tau_fin = (float(v[0]) for v in fine.objective(final[2][None]))
+            key, written = c_fin + PENALTY_WEIGHT * tau_fin, f" (as written {_show(settings, c_fin)})"
+        results.append((key, s, x[0], final))
+        say(f"start {s.key + 1}: {_show(settings, c_val)}, penalty {coll_val + tau_val:.3g}{written}, "
             + _convergence(settings, s).describe(settings.criterion))
     results.sort(key=lambda r: r[0])
     best = results[0][1]
     convergence = _convergence(settings, best)
-    trajectory, min_distance = _finalise(problem, spec, results[0][2])
+    trajectory, min_distance, _ = results[0][3] or _finalise(problem, spec, results[0][2])
     t = sample_times(settings.duration_s, spec.controller_rate_hz)
     dense = evaluate_criteria(spec, problem.base, *trajectory.evaluate(t))
     coarse = evaluate_criteria(spec, problem.base, *trajectory.evaluate(fine.basis_criterion.t))
@@ -393,7 +402,8 @@ def _convergence(settings: ExcitationSettings, start: _Start) -> Convergence:
                        settings.window)
 
 
-def _finalise(problem: ExcitationProblem, spec: RobotSpec, x: np.ndarray) -> tuple[FourierTrajectory, float]:
+def _finalise(problem: ExcitationProblem, spec: RobotSpec,
+              x: np.ndarray) -> tuple[FourierTrajectory, float, np.ndarray]:
     """Project onto the limits at the controller rate; shrink towards q0 until the dense numpy
     collision check passes (q0 itself is collision-free, so this terminates)."""
     t = sample_times(problem.settings.duration_s, spec.controller_rate_hz)
@@ -405,7 +415,7 @@ def _finalise(problem: ExcitationProblem, spec: RobotSpec, x: np.ndarray) -> tup
         q = trajectory.evaluate(t)[0]
         d = problem.capsules.distances(spec, q)[:, problem.checked]
         if np.all(d >= required):
-            return trajectory, float(d.min())
+            return trajectory, float(d.min()), x * shrink
     raise RuntimeError("could not make the trajectory collision-free")  # pragma: no cover
 
 

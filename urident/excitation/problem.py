@@ -64,6 +64,7 @@ class ExcitationSettings:
     hop_rounds: int = 4                   # at most this many rounds, each from the best so far, each
     hop_scale: float = 0.3                # coefficient scaled by 1 + hop_scale·N(0, 1); a round starts
     hop_evaluations: int = 9000           # only while the search used fewer evaluations (none: 1 start)
+    select: str = "objective"             # 'finalised': the finalists ranked as written (collision-free, no buffer)
     polish: int = 2                       # then the best this many continue on the criterion on
     polish_samples: int = 100             # this many samples (the search's is coarser: cheaper)
     budget_s: float | None = None         # wall-time cap of the search [s]; None: until converged
@@ -95,6 +96,8 @@ class ExcitationSettings:
         if min(self.hops, self.hop_rounds, self.hop_evaluations) < 0 or not self.hop_scale >= 0:
             raise ValueError(f"hops, hop_rounds, hop_evaluations and hop_scale must not be negative, not "
                              f"{self.hops}, {self.hop_rounds}, {self.hop_evaluations} and {self.hop_scale}")
+        if self.select not in ("objective", "finalised"):
+            raise ValueError(f"select must be 'objective' or 'finalised', not {self.select!r}")
         if not self.tolerance >= 0:
             raise ValueError(f"tolerance must not be negative, not {self.tolerance}")
         if self.budget_s is not None and not self.budget_s > 0:
