@@ -399,8 +399,9 @@ def test_finalised_selection_ranks_the_finalists_as_written(ur5):
     # search's buffer, so what is written is never worse on the criterion grid than the default's pick
     settings = ExcitationSettings(**{**SMALL, "starts": 2, "finalists": 1, "screen_iterations": 4, "hop_rounds": 2},
                                   seed=6, workers=0, collision_buffer_m=0.015)
-    plain = optimize_excitation(ur5, settings)
-    chosen = optimize_excitation(ur5, replace(settings, select="finalised"))
+    plain = optimize_excitation(ur5, replace(settings, select="objective"))
+    chosen = optimize_excitation(ur5, settings)          # the default
+    assert settings.select == "finalised"
     assert chosen.history == plain.history
     assert chosen.coarse_criteria.cond_theta <= plain.coarse_criteria.cond_theta * (1 + 1e-9)
     assert check_trajectory(ur5, chosen.trajectory, limits=chosen.limits).ok

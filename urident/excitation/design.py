@@ -125,6 +125,7 @@ class ExcitationDesign:
                "tolerance": s.tolerance, "hops": s.hops, "hop_rounds": s.hop_rounds, "polish": s.polish,
                "criterion_samples": s.criterion_samples, "polish_samples": s.polish_samples,
                "collision_samples": s.collision_samples, "limit_samples": s.limit_samples, "periods": s.periods,
+               "select": s.select,
                "wall_s": round(self.wall_s, 3), "cpu_s": round(self.cpu_s, 3), "evaluations": self.evaluations,
                **self.convergence.as_dict()}
         if s.budget_s is not None:

@@ -18,9 +18,10 @@ Method (measured against L-BFGS-B with forward differences and a smooth bound of
   (docs/excitation.md). None for a single start (``starts=1``: that start alone, quick). The best
   of all is polished: the best ``polish`` continue on the criterion on ``polish_samples`` samples
   (the search's ``criterion_samples`` are fewer: cheaper, but its optimum is 1–2.5 % worse there).
-  The finalists are ranked by that penalised objective, whose collision part includes the search's
-  buffer; ``select='finalised'`` ranks each as written instead (made collision-free at the controller
-  rate without the buffer, the criterion plus the torque penalty), see docs/excitation.md.
+  The finalists are ranked as written (``select='finalised'``): each made collision-free at the
+  controller rate without the search's buffer, then scored on the criterion plus the torque penalty;
+  ``'objective'`` ranks them by the search's penalised objective, whose collision part includes the
+  buffer (it ranked UR20 seed 2's best two finalists out; docs/excitation.md).
 * Starts run in ``workers`` spawned processes with one BLAS thread each, and so does this process (``workers=0``, the
   default for a single start: in this process). On a shared machine, threaded BLAS made the small matrix products of one evaluation
   10-70 times slower (eigh of 52×52: 58 ms against 0.7 ms). Every start's result is independent of

@@ -64,7 +64,8 @@ class ExcitationSettings:
     hop_rounds: int = 4                   # at most this many rounds, each from the best so far, each
     hop_scale: float = 0.3                # coefficient scaled by 1 + hop_scale·N(0, 1); a round starts
     hop_evaluations: int = 9000           # only while the search used fewer evaluations (none: 1 start)
-    select: str = "objective"             # 'finalised': the finalists ranked as written (collision-free, no buffer)
+    select: str = "finalised"             # the finalists ranked as written (collision-free, no buffer);
+                                          # 'objective': by the search's penalised objective
     polish: int = 2                       # then the best this many continue on the criterion on
     polish_samples: int = 100             # this many samples (the search's is coarser: cheaper)
     budget_s: float | None = None         # wall-time cap of the search [s]; None: until converged
