@@ -409,6 +409,15 @@ def test_finalised_selection_ranks_the_finalists_as_written(ur5):
         ExcitationSettings(select="penalty")
 
 
+def test_a_line_search_trial_beyond_the_limits_is_refused_not_raised(ur5):
+    # a wide collision buffer made BFGS try coefficients whose regressor overflows (NaN in eigh)
+    settings = ExcitationSettings(**{**SMALL, "starts": 2, "finalists": 1, "screen_iterations": 4, "hop_rounds": 2},
+                                  seed=1, workers=0, collision_buffer_m=0.03)
+    result = optimize_excitation(ur5, settings)
+    assert np.isfinite(result.criteria.cond_theta)
+    assert check_trajectory(ur5, result.trajectory, limits=result.limits).ok
+
+
 def test_polish_continues_the_best_on_the_finer_criterion_grid(ur5):
     # the search's criterion is on criterion_samples; the polish continues the best on polish_samples,
     # (within the start's iteration limit), and the reported coarse criterion and the iteration count

@@ -241,6 +241,8 @@ class ExcitationProblem:
         flat_theta = theta.reshape(-1, self.n_columns)
         inv = 1.0 / self.scales
         lam = (flat_theta.T @ flat_theta) / n * inv[:, None] * inv[None, :]
+        if not np.all(np.isfinite(lam)):  # a line-search trial far outside the limits: refuse the step
+            return np.inf, np.zeros_like(flat)
         eig, vec = scipy.linalg.eigh(lam, driver="evr")  # not LAPACK's evd: 30× slower with contended BLAS threads
         eig = np.maximum(eig, 1e-300)
         crit, weights = criterion_weights(eig, self.settings.criterion)
