@@ -409,6 +409,7 @@ def test_finalised_selection_ranks_the_finalists_as_written(ur5):
         ExcitationSettings(select="penalty")
 
 
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")  # the overflowing trials this test is about
 def test_a_line_search_trial_beyond_the_limits_is_refused_not_raised(ur5):
     # a wide collision buffer made BFGS try coefficients whose regressor overflows (NaN in eigh)
     settings = ExcitationSettings(**{**SMALL, "starts": 2, "finalists": 1, "screen_iterations": 4, "hop_rounds": 2},
