@@ -106,12 +106,11 @@ def joint_feature(feature: str, t_ref: np.ndarray | None, j: int) -> str:
     return term_text(feature, float(t_ref[j])) if feature in TEMPERATURE_FEATURES else feature
 
 
-def temperature_offered(data: Prepared) -> np.ndarray:
-    """(6,) whether each joint's temperature terms are offered: the logs carry temperatures and the
-    joint's moved by at least :data:`MIN_TEMPERATURE_SPAN_C` over the data."""
-    if data.temperature is None:
-        return np.zeros(6, dtype=bool)
-    return np.ptp(data.temperature, axis=0) >= MIN_TEMPERATURE_SPAN_C
+def temperature_spans(data: Prepared) -> np.ndarray | None:
+    """(6,) how far each joint's logged temperature moved over the data [°C] (None without
+    temperatures); a joint's temperature terms are offered where it is at least
+    :data:`MIN_TEMPERATURE_SPAN_C`."""
+    return None if data.temperature is None else np.ptp(data.temperature, axis=0)
 
 
 def reference_temperatures(data: Prepared) -> np.ndarray | None:
@@ -201,7 +200,7 @@ class FrictionSelection:
     def _temperature_text(self) -> str:
         if self.t_ref is None:
             return "not offered: the logs carry no joint temperature"
-        spans = "span [°C] per joint " + " ".join(f"{v:g}" for v in self.t_span)
+        spans = "span [°C] per joint " + " ".join(f"{v:.2f}" for v in self.t_span)
         if not self.temperature_joints:
             return f"not offered: no joint's temperature moved {MIN_TEMPERATURE_SPAN_C:g} °C ({spans})"
         return (f"offered on {', '.join(f'J{j + 1}' for j in self.temperature_joints)} (moved >= "
@@ -438,7 +437,8 @@ def select_friction(spec, data: Prepared, model: ModelConfig | None = None, fold
     model = model or ModelConfig(reduced=True)
     bases = base_models(model, dahl_grid)
     t_ref = reference_temperatures(data)
-    offered = temperature_offered(data)
+    spans = temperature_spans(data)
+    offered = np.zeros(6, dtype=bool) if spans is None else spans >= MIN_TEMPERATURE_SPAN_C
     results = []
     with Progress("friction selection (Coulomb states)", len(bases)) as progress:
         for label, base in bases:
@@ -461,4 +461,4 @@ def select_friction(spec, data: Prepared, model: ModelConfig | None = None, fold
     return FrictionSelection(chosen, joints, tuple((r[0], rms[k]) for k, r in enumerate(results)),
                              tuple(t.label for t in family(bases[0][1], bool(offered.any()))), folds,
                              None if t_ref is None else tuple(float(v) for v in t_ref),
-                             None if t_ref is None else tuple(round(float(v), 2) for v in np.ptp(data.temperature, axis=0)))
+                             None if spans is None else tuple(float(v) for v in spans))
