@@ -35,7 +35,9 @@ is not worth a parameter). A term that makes the two directions of motion differ
 (:data:`DIRECTIONAL`: offset, |z|, the sigmoid's offset column) must also lower joint j's held-out
 squared error on the held-out samples of each direction (q̇_j ≥ 0 and q̇_j < 0, summed over the
 folds): where the joint moved one way only, such a term is not told apart from the odd friction
-columns, and what it predicts for the other way is a guess. Of the terms that pass, the largest
+columns, and what it predicts for the other way is a guess. Such terms are not offered at all on a
+joint that travelled less than :data:`MIN_DIRECTION_SHARE` of its way (Σ|q̇|) in one direction: a
+few reversals then decide the held-out test of that direction. Of the terms that pass, the largest
 gain is taken. The Coulomb state
 with the lowest mean held-out RMS over joints is shared; a joint takes another (its own best,
 with the terms selected on it) only when that passes the same rule against the shared one.
@@ -62,6 +64,10 @@ HARMONICS = (1, 2, 3)                 # periods per joint revolution
 # so a smaller span moves it less than the MIN_GAIN a term must earn, and what such a term fits is
 # any other slow drift of the run, extrapolated as soon as the temperature leaves that span
 MIN_TEMPERATURE_SPAN_C = 1.0
+# least share of a joint's travel (Σ|q̇|) in its rarer direction for the terms that make the two
+# directions differ: below it the other direction's friction rests on a few reversals, and a
+# directional term fitted there mostly reshapes the one direction seen (module doc)
+MIN_DIRECTION_SHARE = 0.1
 MIN_T = 2.0          # mean fold gain / its standard error (≈ 95 % one-sided with 5 folds)
 MIN_GAIN = 0.005     # relative held-out RMS decrease of the joint
 MAX_TERMS = 6        # per joint
@@ -111,6 +117,16 @@ def temperature_spans(data: Prepared) -> np.ndarray | None:
     temperatures); a joint's temperature terms are offered where it is at least
     :data:`MIN_TEMPERATURE_SPAN_C`."""
     return None if data.temperature is None else np.ptp(data.temperature, axis=0)
+
+
+def direction_shares(data: Prepared) -> np.ndarray:
+    """(6,) each joint's share of its travel (Σ|q̇| over the samples) in its rarer direction of
+    motion, 0 to 0.5; a joint's directional terms are offered where it is at least
+    :data:`MIN_DIRECTION_SHARE`."""
+    fwd = np.clip(data.qd, 0.0, None).sum(axis=0)
+    back = np.clip(-data.qd, 0.0, None).sum(axis=0)
+    total = fwd + back
+    return np.where(total > 0, np.minimum(fwd, back) / np.where(total > 0, total, 1.0), 0.0)
 
 
 def reference_temperatures(data: Prepared) -> np.ndarray | None:
@@ -165,11 +181,17 @@ class FrictionSelection:
     folds: int
     t_ref: tuple[float, ...] | None = None   # per joint [°C]; None: the logs carry no joint temperature
     t_span: tuple[float, ...] | None = None  # per joint, how far its temperature moved in the data [°C]
+    direction_share: tuple[float, ...] = (0.5,) * 6   # per joint, its travel's share in the rarer direction
 
     @property
     def temperature_joints(self) -> tuple[int, ...]:
         """The joints (0-based) whose temperature terms were offered."""
         return () if self.t_span is None else tuple(j for j, v in enumerate(self.t_span) if v >= MIN_TEMPERATURE_SPAN_C)
+
+    @property
+    def directional_joints(self) -> tuple[int, ...]:
+        """The joints (0-based) whose directional terms (offset, |z|, sigmoid offset) were offered."""
+        return tuple(j for j, v in enumerate(self.direction_share) if v >= MIN_DIRECTION_SHARE)
 
     @property
     def mean_rms_nm(self) -> float:
@@ -183,6 +205,7 @@ class FrictionSelection:
                  "of motion differ also lowers the held-out error of each direction's samples)",
                  f"  terms tried per joint: {'; '.join(self.family)}",
                  "  joint temperature: " + self._temperature_text(),
+                 "  both directions of motion: " + self._direction_text(),
                  "  Coulomb states tried, each joint's held-out RMS [N·m] after its selection (the state with the "
                  "lowest mean is shared; a joint takes its own best when that passes the term rule):"]
         lines += [f"    {b:<18}" + " ".join(f"{v:6.3f}" for v in r) for b, r in self.bases]
@@ -207,11 +230,21 @@ class FrictionSelection:
                 f"{MIN_TEMPERATURE_SPAN_C:g} °C; {spans}), T_ref [°C] per joint (the data's mean): "
                 + " ".join(f"{v:g}" for v in self.t_ref))
 
+    def _direction_text(self) -> str:
+        shares = "share of travel in the rarer direction per joint " + " ".join(f"{v:.2f}" for v in self.direction_share)
+        left = [j for j in range(6) if j not in self.directional_joints]
+        if not left:
+            return f"offset, |z| and sigmoid offset offered on every joint ({shares})"
+        return (f"offset, |z| and sigmoid offset not offered on {', '.join(f'J{j + 1}' for j in left)} "
+                f"(moved < {100 * MIN_DIRECTION_SHARE:g} % of its travel one way; {shares})")
+
     def to_dict(self) -> dict:
         return {"model": self.model.as_dict(), "folds": self.folds, "family": list(self.family),
                 "temperature_ref_c": None if self.t_ref is None else list(self.t_ref),
                 "temperature_span_c": None if self.t_span is None else list(self.t_span),
                 "temperature_joints": [j + 1 for j in self.temperature_joints],
+                "direction_share": list(self.direction_share),
+                "directional_joints": [j + 1 for j in self.directional_joints],
                 "bases": {b: [float(v) for v in r] for b, r in self.bases}, "mean_cv_rms_nm": self.mean_rms_nm,
                 "joints": [{"coulomb": c.coulomb, "terms": [s.term for s in c.steps], "cv_rms_nm": c.rms,
                             "steps": [vars(s) | {"gain_pct": s.gain_pct, "by_direction": None if s.by_direction is None
@@ -331,9 +364,14 @@ def _solve(r: np.ndarray) -> np.ndarray:
     return x / scale
 
 
-def _select(fac: _Factors, terms: tuple[Term, ...], offered: np.ndarray) -> tuple[list[list[str]], list[JointChoice]]:
+def _is_directional(t: Term) -> bool:
+    return any(parse_term(x)[0] in DIRECTIONAL for x in t.features if x not in TEMPERATURE_FEATURES)
+
+
+def _select(fac: _Factors, terms: tuple[Term, ...], offered: np.ndarray,
+            directional: np.ndarray) -> tuple[list[list[str]], list[JointChoice]]:
     """Greedy forward selection of each joint's terms (module doc); ``offered`` (6,): the joints
-    whose temperature terms are tried."""
+    whose temperature terms are tried; ``directional`` (6,): those whose directional terms are."""
     sels: list[list[str]] = [[] for _ in range(6)]
     steps: list[list[Step]] = [[] for _ in range(6)]
     rejected: list[Step | None] = [None] * 6
@@ -352,7 +390,8 @@ def _select(fac: _Factors, terms: tuple[Term, ...], offered: np.ndarray) -> tupl
                 base_dir[j] += by_dir
                 for t in terms:
                     if any(x in sels[j] for x in t.features) or (
-                            not offered[j] and any(x in TEMPERATURE_FEATURES for x in t.features)):
+                            not offered[j] and any(x in TEMPERATURE_FEATURES for x in t.features)) or (
+                            not directional[j] and _is_directional(t)):
                         continue
                     if f == 0:
                         cand[j].append((t, np.zeros(fac.folds), np.zeros(2)))
@@ -367,9 +406,7 @@ def _select(fac: _Factors, terms: tuple[Term, ...], offered: np.ndarray) -> tupl
             best_any: Step | None = None
             for t, sq, sq_dir in cand[j]:
                 t_stat, every, consistent = fold_test((base_sq[:, j] - sq) / fac.n_test)
-                by_dir = (tuple(float(v) for v in base_dir[j] - sq_dir)
-                          if any(parse_term(x)[0] in DIRECTIONAL for x in t.features
-                                 if x not in TEMPERATURE_FEATURES) else None)
+                by_dir = tuple(float(v) for v in base_dir[j] - sq_dir) if _is_directional(t) else None
                 step = Step(t.label, float(before), float(np.sqrt(sq.sum() / n)), t_stat, by_dir, every)
                 if best_any is None or step.rms_after < best_any.rms_after:
                     best_any = step
@@ -439,13 +476,14 @@ def select_friction(spec, data: Prepared, model: ModelConfig | None = None, fold
     t_ref = reference_temperatures(data)
     spans = temperature_spans(data)
     offered = np.zeros(6, dtype=bool) if spans is None else spans >= MIN_TEMPERATURE_SPAN_C
+    shares = direction_shares(data)
     results = []
     with Progress("friction selection (Coulomb states)", len(bases)) as progress:
         for label, base in bases:
             terms = family(base, bool(offered.any()))
             fac = _Factors(spec, base, terms, data, folds)
             with one_blas_thread():
-                sels, joints, mse = _select(fac, terms, offered)
+                sels, joints, mse = _select(fac, terms, offered, shares >= MIN_DIRECTION_SHARE)
             results.append((label, base, sels, joints, mse))
             progress.advance(1)
     rms = np.array([[j[2] for j in r[3]] for r in results])     # (bases, 6)
@@ -461,4 +499,5 @@ def select_friction(spec, data: Prepared, model: ModelConfig | None = None, fold
     return FrictionSelection(chosen, joints, tuple((r[0], rms[k]) for k, r in enumerate(results)),
                              tuple(t.label for t in family(bases[0][1], bool(offered.any()))), folds,
                              None if t_ref is None else tuple(float(v) for v in t_ref),
-                             None if spans is None else tuple(float(v) for v in spans))
+                             None if spans is None else tuple(float(v) for v in spans),
+                             tuple(float(v) for v in shares))
