@@ -83,9 +83,9 @@ def fit_and_score(spec, ident, valid, preset: str | None):
     else:
         choice = resolve_preset(spec, data, preset)
         model, weighting = choice.model, choice.weighting
-        if choice.data is not None:   # auto's torque lead over the motion, on both runs
+        if choice.data is not None:   # auto's torque lead and acceleration corner, on both runs
             data = choice.data
-            vdata = prepare([valid], spec, PreprocessConfig(trim_rest=False, torque_lead_s=choice.torque_lead_s))
+            vdata = prepare([valid], spec, choice.preprocess_config(PreprocessConfig(trim_rest=False)))
     m = identify(spec, data, "ols", model, weighting)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     return validate(m, spec, vdata), choice, wall, cpu

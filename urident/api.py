@@ -120,7 +120,7 @@ def identify(logs, robot, method: str = "ols", preset: str | None = None, *, mod
              drive_gains=None, payload=None, regularisation: float | None = None,
              log_options: Mapping | None = None, progress: bool = False,
              sessions: bool = False, overrides: Mapping | None = None,
-             option_names: Mapping | None = None) -> Identification:
+             option_names: Mapping | None = None, select_filter_hz: bool | None = None) -> Identification:
     """Identify base parameters from ``logs`` (paths or Recordings, loaded one at a time).
 
     ``method``: ``ols`` (the paper's), ``bounded``, ``consistent`` or ``all``. ``preset``: a named
@@ -134,7 +134,10 @@ def identify(logs, robot, method: str = "ols", preset: str | None = None, *, mod
     :class:`urident.model.payload.Payload` or a payload file the logs carry (its torque is removed).
     ``log_options``: keyword arguments of :func:`urident.logs.load_log` for paths. ``sessions``:
     each log is a session of its own; a per-session torque offset and friction scale are kept per
-    joint where blocked CV says they pay (:func:`urident.ident.sessions.fit_sessions`)."""
+    joint where blocked CV says they pay (:func:`urident.ident.sessions.fit_sessions`).
+    ``select_filter_hz``: whether ``auto`` chooses the acceleration filter's corner by blocked CV
+    (:func:`urident.ident.presets.choose_on_data`); default yes unless ``preprocess`` sets a corner
+    other than the default."""
     from urident.ident import PreprocessConfig, identify_all, prepare
     from urident.ident.estimate_consistent import DEFAULT_REGULARISATION
     from urident.ident.presets import choose_on_data, resolve_model
@@ -163,15 +166,19 @@ def identify(logs, robot, method: str = "ols", preset: str | None = None, *, mod
             yield recording
 
     data = prepare(loaded(), spec, config, gains)
+    measured = data
     if payload is not None:
         from urident.ident.payload import without_payload
 
-        data = without_payload(spec, _payload(payload, spec), data)
-    resolved = choose_on_data(spec, data, choice)
+        tool = _payload(payload, spec)
+        data = without_payload(spec, tool, data)
+    if select_filter_hz is None:
+        select_filter_hz = config.filter_hz == PreprocessConfig().filter_hz
+    resolved = choose_on_data(spec, data, choice, config=config, select_corner=select_filter_hz)
     model, weighting, selection = resolved.model, resolved.weighting, resolved.text()
-    if resolved.data is not None:   # auto paired the torque with later motion: fit and record it so
-        data = resolved.data
-        config = replace(config, torque_lead_s=round(config.torque_lead_s + resolved.torque_lead_s, 6))
+    if resolved.data is not None:   # auto paired the torque with later motion or chose another corner: fit and record it so
+        data = resolved.data if payload is None else without_payload(spec, tool, resolved.apply(measured, config.prewarp))
+        config = resolved.preprocess_config(config)
     if sessions:
         from urident.ident.sessions import fit_sessions
 

@@ -68,7 +68,8 @@ def add_model_arguments(p: argparse.ArgumentParser) -> None:
 def add_preprocess_arguments(p: argparse.ArgumentParser, trim_default: bool = True) -> None:
     g = p.add_argument_group("preprocessing")
     g.add_argument("--filter-hz", type=options.positive_float, default=None, metavar="F",
-                   help="corner frequency of the acceleration filter [Hz] (default 10)")
+                   help="corner frequency of the acceleration filter [Hz] (default 10, or the parameters "
+                        "file's when predicting; identify --preset auto chooses it by blocked CV unless given)")
     g.add_argument("--torque-filter-hz", type=options.positive_float, default=None, metavar="F",
                    help="zero-phase low-pass of the torques [Hz] (default: off)")
     g.add_argument("--decimate", type=options.int_range(1, 1000), default=None, metavar="K",
@@ -181,7 +182,7 @@ def run(args: argparse.Namespace) -> int:
         spec, args.method, args.preset, overrides=model_overrides(args), option_names=OPTION_FLAGS,
         preprocess=preprocess_config(args), drive_gains=args.drive_gains,
         payload=options.load_payload_arg(args, spec), regularisation=args.regularisation,
-        sessions=args.sessions)
+        sessions=args.sessions, select_filter_hz=False if args.filter_hz is not None else None)
     written = [str(p) for p in result.save(out, overwrite=args.overwrite)]
     models, data, text = result.models, result.data, result.report
     print(text)

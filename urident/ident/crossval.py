@@ -92,3 +92,23 @@ def select_torque_lead(spec, data: Prepared, model: ModelConfig, grid: Iterable[
     best = min(range(len(grid)), key=lambda k: scores[k].mean_rms_nm)
     zero = scores[grid.index(0.0)].mean_rms_nm
     return (grid[best] if scores[best].mean_rms_nm <= (1 - min_gain) * zero else 0.0), scores
+
+
+def select_acceleration_corner(spec, data: Prepared, model: ModelConfig, grid: Iterable[float], base_hz: float,
+                               weighting: str = "none", method: str = "ols", folds: int = 5,
+                               prewarp: bool = True, min_gain: float = 0.005) -> tuple[float, list[CVScore]]:
+    """The corner of the acceleration filter [Hz], chosen from ``grid`` by blocked CV of ``model``
+    (:func:`urident.ident.preprocess.with_acceleration_corner`; scored on the measured torques):
+    the lowest mean held-out RMS, and ``base_hz`` (the corner ``data`` were prepared with) unless
+    that is at least ``min_gain`` (relative) below the base's. Returns the corner and the scores
+    in grid order."""
+    from urident.ident.preprocess import with_acceleration_corner
+
+    grid = [float(f) for f in grid]
+    if float(base_hz) not in grid:
+        raise ValueError("the grid of acceleration corners must hold the base corner")
+    scores = [cross_validate(spec, data if f == base_hz else with_acceleration_corner(data, f, prewarp),
+                             model, weighting, method, folds) for f in grid]
+    best = min(range(len(grid)), key=lambda k: scores[k].mean_rms_nm)
+    base = scores[grid.index(float(base_hz))].mean_rms_nm
+    return (grid[best] if scores[best].mean_rms_nm <= (1 - min_gain) * base else float(base_hz)), scores

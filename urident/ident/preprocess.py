@@ -72,6 +72,16 @@ def lead_motion(t: np.ndarray, x: np.ndarray, lead_s: float, segment: np.ndarray
     return out
 
 
+def with_acceleration_corner(data: "Prepared", filter_hz: float, prewarp: bool = True) -> "Prepared":
+    """``data`` with q̈ recomputed from its q̇ by the acceleration filter at ``filter_hz``
+    (:func:`accelerations`, each segment on its own)."""
+    qdd = np.empty_like(data.qdd)
+    for s in np.unique(data.segment):
+        k = data.segment == s
+        qdd[k] = accelerations(data.t[k], data.qd[k], filter_hz, prewarp)
+    return replace(data, qdd=qdd)
+
+
 def with_torque_lead(data: "Prepared", lead_s: float) -> "Prepared":
     """``data`` with its motion (q, q̇, q̈) taken ``lead_s`` later (:func:`lead_motion`)."""
     if lead_s == 0:

@@ -58,16 +58,23 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from typing import Mapping
 
+import numpy as np
+
 from urident.errors import ConfigError
-from urident.ident.crossval import CVScore, select_dahl_rad, select_torque_lead
+from urident.ident.crossval import CVScore, select_acceleration_corner, select_dahl_rad, select_torque_lead
 from urident.ident.design import ModelConfig
 from urident.ident.friction_select import DAHL_GRID, FrictionSelection, select_friction  # noqa: F401 (DAHL_GRID re-exported)
-from urident.ident.preprocess import Prepared, with_torque_lead
+from urident.ident.preprocess import (PreprocessConfig, Prepared, sample_rate, with_acceleration_corner,
+                                      with_torque_lead)
 
 CV_FOLDS = 5
 #: [s] leads of the measured torque over the motion that ``auto`` compares by blocked CV (the torque
 #: at t paired with the motion at t + lead; negative: the torque lags)
 TORQUE_LEAD_GRID = tuple(round(k * 0.002, 3) for k in range(-5, 6))
+#: [Hz] corners of the acceleration filter that ``auto`` compares by blocked CV, those up to
+#: :data:`MAX_CORNER_FRACTION` of the log's rate (the data's own corner, 10 Hz by default, is the base)
+ACCELERATION_CORNER_GRID = (10.0, 15.0, 20.0, 30.0, 45.0, 70.0, 100.0, 150.0, 200.0)
+MAX_CORNER_FRACTION = 0.45   # of the sample rate: below Nyquist with room for the bilinear transform
 
 
 @dataclass(frozen=True)
@@ -184,12 +191,29 @@ class PresetChoice:
     folds: int = CV_FOLDS
     torque_lead_s: float = 0.0                   # [s] chosen by CV (preset auto), PreprocessConfig's
     lead_scores: tuple[CVScore, ...] = ()        # the CV scores of TORQUE_LEAD_GRID, in its order
-    data: Prepared | None = field(default=None, repr=False, compare=False)   # the data to fit, with that lead (None: as given)
+    data: Prepared | None = field(default=None, repr=False, compare=False)   # the data to fit, with that lead and corner (None: as given)
+    filter_hz: float | None = None               # [Hz] acceleration corner chosen by CV (preset auto); None: not chosen
+    base_hz: float | None = None                 # [Hz] the corner the identification data were prepared with
+    corner_grid: tuple[float, ...] = ()          # the corners compared
+    corner_scores: tuple[CVScore, ...] = ()      # their CV scores, in that order
+
+    def apply(self, data: Prepared, prewarp: bool = True) -> Prepared:
+        """``data`` (prepared as the identification data were) with the chosen lead and corner."""
+        data = with_torque_lead(data, self.torque_lead_s)
+        if self.filter_hz is None or self.filter_hz == self.base_hz:
+            return data
+        return with_acceleration_corner(data, self.filter_hz, prewarp)
+
+    def preprocess_config(self, config: PreprocessConfig) -> PreprocessConfig:
+        """``config`` (the identification data's preprocessing) with what was chosen on the data:
+        the torque lead added, the acceleration corner set; what predicting with the model needs."""
+        return replace(config, torque_lead_s=round(config.torque_lead_s + self.torque_lead_s, 6),
+                       filter_hz=config.filter_hz if self.filter_hz is None else self.filter_hz)
 
     def text(self) -> str:
         """What was chosen on the data, for the report ('' when nothing was)."""
         if self.selection is not None:
-            return self.lead_text() + self.selection.text()
+            return self.lead_text() + self.corner_text() + self.selection.text()
         if not self.cv_scores:
             return ""
         return (f"dahl_rad selected by {self.folds}-fold blocked CV on the identification data: "
@@ -205,6 +229,22 @@ class PresetChoice:
                 + ", ".join(f"{1000 * s:g}: {c.mean_rms_nm:.3f}" for s, c in zip(TORQUE_LEAD_GRID, self.lead_scores))
                 + ")\n")
 
+    def corner_text(self) -> str:
+        if not self.corner_scores:
+            return ""
+        kept = " (the data's own: no other lowers it by 0.5 %)" if self.filter_hz == self.base_hz else ""
+        return (f"acceleration filter corner chosen by {self.folds}-fold blocked CV of the chosen model: "
+                f"{self.filter_hz:g} Hz{kept} (mean held-out RMS [N·m] per corner [Hz]: "
+                + ", ".join(f"{f:g}: {c.mean_rms_nm:.3f}" for f, c in zip(self.corner_grid, self.corner_scores))
+                + ")\n")
+
+
+def corner_grid(data: Prepared, base_hz: float) -> tuple[float, ...]:
+    """The corners ``auto`` compares on ``data``: the base and those of
+    :data:`ACCELERATION_CORNER_GRID` up to :data:`MAX_CORNER_FRACTION` of the slowest segment's rate."""
+    rate = min(sample_rate(data.t[data.segment == s]) for s in np.unique(data.segment))
+    return tuple(sorted({float(base_hz), *(f for f in ACCELERATION_CORNER_GRID if f <= MAX_CORNER_FRACTION * rate)}))
+
 
 def get_preset(name: str) -> Preset:
     try:
@@ -213,14 +253,26 @@ def get_preset(name: str) -> Preset:
         raise ConfigError(f"preset {name!r} unknown (known: {', '.join([*PRESETS, *PRESET_ALIASES])})") from None
 
 
-def choose_on_data(spec, data: Prepared, choice: ModelChoice, folds: int = CV_FOLDS) -> PresetChoice:
+def choose_on_data(spec, data: Prepared, choice: ModelChoice, folds: int = CV_FOLDS,
+                   config: PreprocessConfig | None = None, select_corner: bool = True) -> PresetChoice:
     """What ``choice`` leaves to the identification data, chosen by blocked CV on ``data``: each
-    joint's friction terms (``auto``) or δ from :data:`DAHL_GRID`; else ``choice`` as it is."""
+    joint's friction terms, the torque's lead and the acceleration filter's corner (``auto``;
+    ``config``: the preprocessing ``data`` had, default :class:`PreprocessConfig`'s; the corner
+    only with ``select_corner`` and undecimated data) or δ from :data:`DAHL_GRID`; else ``choice``
+    as it is."""
     if choice.select_friction:
+        config = config or PreprocessConfig()
         sel = select_friction(spec, data, choice.model, folds)
         lead, scores = select_torque_lead(spec, data, sel.model, TORQUE_LEAD_GRID, choice.weighting, "ols", folds)
-        fitted = with_torque_lead(data, lead) if lead else None
-        return PresetChoice(choice.preset, sel.model, choice.weighting, (), sel, folds, lead, tuple(scores), fitted)
+        out = PresetChoice(choice.preset, sel.model, choice.weighting, (), sel, folds, lead, tuple(scores))
+        if select_corner and config.decimate == 1:   # decimated data no longer hold the rate the filter ran at
+            grid = corner_grid(data, config.filter_hz)
+            corner, corner_scores = select_acceleration_corner(
+                spec, out.apply(data), sel.model, grid, config.filter_hz, choice.weighting, "ols", folds, config.prewarp)
+            out = replace(out, filter_hz=corner, base_hz=float(config.filter_hz), corner_grid=grid,
+                          corner_scores=tuple(corner_scores))
+        changed = out.torque_lead_s or out.filter_hz != out.base_hz
+        return replace(out, data=out.apply(data, config.prewarp) if changed else None)
     if choice.select_dahl_rad:
         model, scores = select_dahl_rad(spec, data, choice.model, DAHL_GRID, choice.weighting, "ols", folds)
         return PresetChoice(choice.preset, model, choice.weighting, tuple(scores), None, folds)
