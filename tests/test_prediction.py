@@ -76,9 +76,10 @@ def test_view_and_validate_agree_on_real_ur10e_with_real_robot_preset(tmp_path, 
     assert identified.model.dahl_source == "velocity" and identified.preprocess.torque_lead_s > 0
     report = _assert_same(tmp_path, capsys, params, [str(UR10E_VALID), *UR10E, "--rows", "700-4200"],
                           "ur10e", 3501)
-    # the README's real-robot row (OLS): e_N 0.0602, RMS 0.43 / 0.68 on joints 5 / 6
-    assert report["e_n"] == pytest.approx(0.0602, abs=5e-4)
-    np.testing.assert_allclose(report["rms_nm"][4:], [0.43, 0.68], atol=0.01)
+    # the README's real-robot row (OLS): e_N 0.0545, RMS 0.42 / 0.68 on joints 5 / 6
+    assert identified.preprocess.filter_hz == 45.0
+    assert report["e_n"] == pytest.approx(0.0545, abs=5e-4)
+    np.testing.assert_allclose(report["rms_nm"][4:], [0.42, 0.68], atol=0.01)
 
 
 def test_view_and_validate_agree_on_a_urident_log(tmp_path, capsys):

@@ -8,7 +8,10 @@ what it leaves to the data (:func:`choose_on_data`).
 identification data given (:mod:`urident.ident.friction_select`): the same procedure on any arm.
 With those terms, the measured torque's lead over the motion is chosen by the same CV from
 :data:`TORQUE_LEAD_GRID` (:func:`urident.ident.crossval.select_torque_lead`; 8 ms on the UR10e run);
-``PresetChoice.data`` is then the data to fit, and the lead goes into the preprocessing recorded.
+Last, the acceleration filter's corner, by the same CV from :data:`ACCELERATION_CORNER_GRID`
+(:func:`urident.ident.crossval.select_acceleration_corner`; 45 Hz on the UR10e run, whose torque
+follows the arm's fast motion). ``PresetChoice.data`` is then the data to fit, and
+``PresetChoice.preprocess_config`` the preprocessing recorded (lead and corner).
 ``real-robot`` and ``best`` name it since it predicted the UR10e's held-out recordings better than
 the fixed set below (docs/friction-selection.md).
 
@@ -96,7 +99,8 @@ PRESETS = {
         "reduced base set, per-joint weighting, Dahl presliding Coulomb state driven by the "
         "integrated velocity, and each joint's friction terms (offset, asymmetry, sigmoid with "
         "offset, Stribeck, square-root/quadratic viscous, load-dependent Coulomb, Dahl, position "
-        "harmonics) and the Dahl distance chosen by 5-fold blocked CV on the identification data",
+        "harmonics), the Dahl distance, the torque's lead and the acceleration filter's corner "
+        "chosen by 5-fold blocked CV on the identification data",
         select_friction=True),
     "ur10e-2020": Preset(
         "ur10e-2020",
