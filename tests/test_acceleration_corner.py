@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import urident as ur
+from urident.errors import ConfigError
 from urident.ident import load_params, prepare, resolve_preset, save_params
 from urident.ident.presets import corner_grid
 from urident.ident.synthetic import random_multisine, synthetic_recording
@@ -74,6 +75,11 @@ def test_auto_keeps_the_corner_unless_the_torque_follows_faster_motion(spec, tmp
     at_corner = ur.validate(loaded, [other]).rms_nm
     at_ten = ur.validate(loaded, [other], filter_hz=10.0).rms_nm
     assert np.mean(at_corner) < 0.7 * np.mean(at_ten)
+    # a log too slow for the recorded corner is refused, in one line that says where the corner came from
+    slow = replace(other.select(np.arange(0, len(other.t), 3)), rate_hz=other.rate_hz / 3)
+    with pytest.raises(ConfigError, match="must be below the Nyquist frequency .*a parameters file records the corner"):
+        ur.validate(loaded, [slow])
+    assert np.all(np.isfinite(ur.validate(loaded, [slow], filter_hz=10.0).rms_nm))
 
 
 def test_a_corner_given_is_kept(spec, tmp_path, capsys):

@@ -333,6 +333,9 @@ def preprocess(recording, spec, config: PreprocessConfig | None = None,
             torque = lowpass_t(t, torque, config.torque_filter_hz, config.prewarp)
     except LogFormatError as exc:
         raise LogFormatError(f"{source}: {exc}") from None
+    except ConfigError as exc:   # a corner above this log's Nyquist: a parameters file's, or --filter-hz
+        raise ConfigError(f"{source}: {exc} (a parameters file records the corner it was identified "
+                          "with; --filter-hz sets another)") from None
     first, last = (0, len(t))
     if config.trim_rest:
         first, last = rest_trim_range(qd, config.rest_threshold)
