@@ -61,9 +61,9 @@ class ExcitationSettings:
     tolerance: float = 2e-3               # converged: the objective fell less than this over
     window: int = 50                      # the last ``window`` iterations (2e-3: 0.1 % of cond Θ̄_B)
     hops: int = 2                         # then restarts from the best, perturbed (basin hopping), in
-    hop_rounds: int = 6                   # at most this many rounds, each from the best so far, each
+    hop_rounds: int = 8                   # at most this many rounds, each from the best so far, each
     hop_scale: float = 0.3                # coefficient scaled by 1 + hop_scale·N(0, 1); a round starts
-    hop_evaluations: int = 13000          # only while the search used fewer evaluations (none: 1 start)
+    hop_evaluations: int = 16000          # only while the search used fewer evaluations (none: 1 start)
     select: str = "finalised"             # the finalists ranked as written (collision-free, no buffer);
                                           # 'objective': by the search's penalised objective
     polish: int = 2                       # then the best this many continue on the criterion on
