@@ -116,6 +116,9 @@ def test_basis_and_free_coefficients_reproduce_evaluate(rng):
     np.testing.assert_allclose(dq + traj.q0, q_ref, atol=1e-12)
     np.testing.assert_allclose(qd, qd_ref, atol=1e-12)
     np.testing.assert_allclose(qdd, qdd_ref, atol=1e-12)
+    # the optimiser's single-set path: the same products, bit for bit
+    assert all(np.array_equal(a, b) for a, b in zip(basis.evaluate_one(free), (dq, qd, qdd)))
+    assert np.array_equal(basis.evaluate_one(free, "qd")[0], qd)
 
 
 def test_sample_at_controller_rate(rng):
@@ -186,6 +189,9 @@ def test_capsule_distance_jacobians_match_finite_differences(name, rng):
                    for e in np.eye(6)], axis=-1)
     assert np.abs(jac).max() > 0.1            # the distances do move with the joints
     np.testing.assert_allclose(jac, fd, rtol=0, atol=1e-7)
+    where = rng.random(d.shape) < 0.2        # only some entries (the optimiser's: those inside a clearance)
+    partial = capsules.distance_derivatives(spec, q, where)
+    assert np.array_equal(partial[where], jac[where]) and not partial[~where].any()
 
 
 def test_required_distances_relax_only_pairs_close_by_construction(ur5):

@@ -96,37 +96,51 @@ class CapsuleModel:
         return (capsules.tobytes(), pairs.tobytes(), self.floor.astype(np.int32).tobytes(),
                 float(self.floor_height_m))
 
-    def distance_jacobians(self, spec: RobotSpec, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`distances` (N, P + F) and their derivatives in the joint angles (N, P + F, 6).
+    def distance_jacobians(self, spec: RobotSpec, q: np.ndarray,
+                           where: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`distances` (N, P + F) and :meth:`distance_derivatives` (N, P + F, 6)."""
+        return self.distances(spec, q), self.distance_derivatives(spec, q, where)
+
+    def distance_derivatives(self, spec: RobotSpec, q: np.ndarray, where: np.ndarray | None = None) -> np.ndarray:
+        """The distances' derivatives in the joint angles (N, P + F, 6) at the entries ``where``
+        (N, P + F) is true, zero elsewhere (default: all).
 
         A distance is that of the two closest points, which move with their links: its derivative
         is the unit normal between them times their velocities z_i × (c − o_i) for every joint i
         carrying them (the closest points' own motion along the segments does not change the
         distance to first order). Where two segments touch, the normal is undefined: zero there."""
-        rot, pos = frame_poses(spec, np.atleast_2d(q))
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        n = q.shape[0]
+        rows, pairs = np.nonzero(np.ones((n, self.n_pairs), dtype=bool) if where is None else where)
+        jac = np.zeros((n, self.n_pairs, 6))
+        rot, pos = frame_poses(spec, q)
         pa, pb = self._segments(rot, pos)
         axes = np.stack([rot[:, i, :, AXIS_INDEX[j.axis]] for i, j in enumerate(spec.joints)], axis=1)  # (N, 6, 3)
         origins = pos[:, :6]
         moves = self.frame[:, None] >= np.arange(6)[None, :]                     # (C, 6) joint i carries it
 
-        def point_jacobian(c: np.ndarray, capsules: np.ndarray) -> np.ndarray:  # (N, K, 6, 3)
-            v = np.cross(axes[:, None], c[:, :, None] - origins[:, None])
-            return v * moves[capsules][None, :, :, None]
+        def point_jacobian(c: np.ndarray, r: np.ndarray, capsules: np.ndarray) -> np.ndarray:  # (K, 6, 3)
+            z, d = axes[r], c[:, None] - origins[r]
+            v = np.stack([z[..., 1] * d[..., 2] - z[..., 2] * d[..., 1], z[..., 2] * d[..., 0] - z[..., 0] * d[..., 2],
+                          z[..., 0] * d[..., 1] - z[..., 1] * d[..., 0]], axis=-1)   # z × d (np.cross is slower)
+            return v * moves[capsules][:, :, None]
 
-        i, k = self.first, self.second
-        s, t = segment_closest(pa[:, i], pb[:, i], pa[:, k], pb[:, k])
-        c1 = pa[:, i] + (pb[:, i] - pa[:, i]) * s[..., None]
-        c2 = pa[:, k] + (pb[:, k] - pa[:, k]) * t[..., None]
+        own = pairs < len(self.first)
+        r, p = rows[own], pairs[own]
+        i, k = self.first[p], self.second[p]
+        s, t = segment_closest(pa[r, i], pb[r, i], pa[r, k], pb[r, k])
+        c1 = pa[r, i] + (pb[r, i] - pa[r, i]) * s[..., None]
+        c2 = pa[r, k] + (pb[r, k] - pa[r, k]) * t[..., None]
         diff = c1 - c2
         gap = np.sqrt(np.einsum("...i,...i->...", diff, diff))
         normal = diff / np.where(gap > _EPS, gap, np.inf)[..., None]
-        self_j = np.einsum("npi,npji->npj", normal, point_jacobian(c1, i) - point_jacobian(c2, k))
-        self_d = gap - self.radius[i] - self.radius[k]
-        lower = pa[:, self.floor, 2] <= pb[:, self.floor, 2]
-        low = np.where(lower[..., None], pa[:, self.floor], pb[:, self.floor])   # (N, F, 3)
-        floor_j = point_jacobian(low, self.floor)[..., 2]
-        floor_d = low[..., 2] - self.radius[self.floor] - self.floor_height_m
-        return np.concatenate([self_d, floor_d], axis=1), np.concatenate([self_j, floor_j], axis=1)
+        jac[r, p] = np.einsum("ki,kji->kj", normal, point_jacobian(c1, r, i) - point_jacobian(c2, r, k))
+        r, p = rows[~own], pairs[~own]
+        c = self.floor[p - len(self.first)]
+        lower = pa[r, c, 2] <= pb[r, c, 2]
+        low = np.where(lower[..., None], pa[r, c], pb[r, c])                       # (K, 3)
+        jac[r, p] = point_jacobian(low, r, c)[..., 2]
+        return jac
 
     def margins(self, spec: RobotSpec, q: np.ndarray) -> np.ndarray:
         """Distance minus required distance (N, P + F); ≥ 0 when safe (+inf for unchecked pairs)."""

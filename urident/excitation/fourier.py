@@ -150,6 +150,13 @@ class FourierBasis:
         return tuple(np.moveaxis(free_t @ np.swapaxes(m, 1, 2), 0, 2)      # (B, N, 6)
                      for m in (self.q, self.qd, self.qdd))
 
+    def evaluate_one(self, free: np.ndarray, which: str = "q qd qdd") -> tuple[np.ndarray, ...]:
+        """:meth:`evaluate` of one coefficient set ``free`` (6, 2(L−1)): the arrays named in
+        ``which`` (of q − q0, q̇, q̈), each (N, 6); the same products without the batch's axis
+        moves (an optimiser's inner loop)."""
+        free_t = np.ascontiguousarray(free)[:, None, :]                       # (6, 1, K)
+        return tuple((free_t @ np.swapaxes(getattr(self, name), 1, 2))[:, 0, :].T for name in which.split())
+
 
 def sample_times(duration: float, rate_hz: float) -> np.ndarray:
     """Times ``k / rate_hz`` for k = 0 … ⌊duration·rate⌋ (includes ``duration`` when it is a whole

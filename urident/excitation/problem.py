@@ -61,9 +61,9 @@ class ExcitationSettings:
     tolerance: float = 2e-3               # converged: the objective fell less than this over
     window: int = 50                      # the last ``window`` iterations (2e-3: 0.1 % of cond Θ̄_B)
     hops: int = 2                         # then restarts from the best, perturbed (basin hopping), in
-    hop_rounds: int = 4                   # at most this many rounds, each from the best so far, each
+    hop_rounds: int = 8                   # at most this many rounds, each from the best so far, each
     hop_scale: float = 0.3                # coefficient scaled by 1 + hop_scale·N(0, 1); a round starts
-    hop_evaluations: int = 9000           # only while the search used fewer evaluations (none: 1 start)
+    hop_evaluations: int = 16000          # only while the search used fewer evaluations (none: 1 start)
     select: str = "finalised"             # the finalists ranked as written (collision-free, no buffer);
                                           # 'objective': by the search's penalised objective
     polish: int = 2                       # then the best this many continue on the criterion on
@@ -229,57 +229,66 @@ class ExcitationProblem:
         coefficients (:class:`FourierBasis`). The torque penalty uses the same derivatives; the
         kinematic penalty is differentiated analytically, the collision penalty through the capsule
         distances' exact derivatives in q, only at samples inside a required distance."""
-        x = flat.reshape(1, 6, self.n_free)
+        x = flat.reshape(6, self.n_free)
         basis = self.basis_criterion
-        dq, qd, qdd = (a[0] for a in basis.evaluate(x))                   # (N, 6)
+        dq, qd, qdd = basis.evaluate_one(x)                                   # (N, 6)
         n = dq.shape[0]
         states = perturbed_states(dq + self.q0, qd, qdd, STATE_STEP)
         blocks = regressor_blocks(self.spec, *(s.reshape(-1, 6) for s in states)).reshape(
             len(states[0]), n, 6, -1)
         self.evaluations += 1
-        theta = blocks[0] @ self.column_map                                   # (N, 6, b)
-        flat_theta = theta.reshape(-1, self.n_columns)
+        point = blocks[0]
+        # 2-D products: one BLAS call instead of one per sample (the same sums, bit for bit)
+        flat_theta = point.reshape(-1, N_PARAMS) @ self.column_map           # (6N, b)
         inv = 1.0 / self.scales
         lam = (flat_theta.T @ flat_theta) / n * inv[:, None] * inv[None, :]
         if not np.all(np.isfinite(lam)):  # a line-search trial far outside the limits: refuse the step
             return np.inf, np.zeros_like(flat)
-        eig, vec = scipy.linalg.eigh(lam, driver="evr")  # not LAPACK's evd: 30× slower with contended BLAS threads
+        # not LAPACK's evd: 30× slower with contended BLAS threads; lam was checked finite above
+        eig, vec = scipy.linalg.eigh(lam, driver="evr", check_finite=False)
         eig = np.maximum(eig, 1e-300)
         crit, weights = criterion_weights(eig, self.settings.criterion)
         w_mat = (vec * weights) @ vec.T
         # the derivative in the regressor's 78 columns of every sample: criterion, then torque
-        adjoint = ((2.0 / n) * (theta @ (inv[:, None] * w_mat * inv[None, :]))) @ self.column_map.T
-        tau = blocks[0] @ self.p_nominal                                      # (N, 6)
+        adjoint = (((2.0 / n) * (flat_theta @ (inv[:, None] * w_mat * inv[None, :]))) @ self.column_map.T
+                   ).reshape(n, 6, N_PARAMS)
         loads = [self.p_nominal] if self.p_payload is None else [self.p_nominal, self.p_nominal + self.p_payload]
-        excess = [np.maximum(np.abs(blocks[0] @ p) / self.limits.tau_max - 1.0, 0.0) for p in loads]
-        worst = np.argmax(np.stack(excess), axis=0)
+        taus = [point @ p for p in loads]                                     # (N, 6) each
+        excess = [np.maximum(np.abs(tau) / self.limits.tau_max - 1.0, 0.0) for tau in taus]
         torque_pen = float(np.sum(np.maximum.reduce(excess) ** 2)) / n
-        for k, p in enumerate(loads):
-            tau = blocks[0] @ p
-            g_tau = np.where(worst == k, 2.0 * excess[k] * np.sign(tau) / self.limits.tau_max, 0.0) / n
-            if np.any(g_tau):
-                adjoint += PENALTY_WEIGHT * g_tau[..., None] * p
+        if any(e.any() for e in excess):  # else every term below is zero
+            worst = np.argmax(np.stack(excess), axis=0)
+            for k, p in enumerate(loads):
+                g_tau = np.where(worst == k, 2.0 * excess[k] * np.sign(taus[k]) / self.limits.tau_max, 0.0) / n
+                if np.any(g_tau):
+                    adjoint += PENALTY_WEIGHT * g_tau[..., None] * p
         # one contraction over every perturbed state, then differences in each state variable
         d_state = state_derivatives(np.einsum("kjp,skjp->sk", adjoint, blocks), STATE_STEP)  # (18, N)
         grad = chain(basis, d_state)
 
         # kinematic penalty (linear in the coefficients)
-        kin, g_kin = self.kinematic_penalty_gradient(x[0])
+        kin, g_kin = self.kinematic_penalty_gradient(x)
         # collision penalty
-        coll, g_coll = self.collision_penalty_gradient(x[0])
+        coll, g_coll = self.collision_penalty_gradient(x)
         value = crit + PENALTY_WEIGHT * (coll + torque_pen) + KINEMATIC_WEIGHT * kin
-        grad = grad + PENALTY_WEIGHT * g_coll + KINEMATIC_WEIGHT * g_kin
+        if g_coll is not None:
+            grad = grad + PENALTY_WEIGHT * g_coll
+        if g_kin is not None:
+            grad = grad + KINEMATIC_WEIGHT * g_kin
         return float(value), grad.ravel()
 
-    def kinematic_penalty_gradient(self, x: np.ndarray) -> tuple[float, np.ndarray]:
-        """:meth:`kinematic_penalty` of one coefficient set (6, K) and its gradient (6, K)."""
+    def kinematic_penalty_gradient(self, x: np.ndarray) -> tuple[float, np.ndarray | None]:
+        """:meth:`kinematic_penalty` of one coefficient set (6, K) and its gradient (6, K) (None:
+        within every limit, so zero)."""
         basis = self.basis_limits
-        dq, qd, qdd = (a[0] for a in basis.evaluate(x[None]))
+        dq, qd, qdd = basis.evaluate_one(x)
         up, down = self.limits.q_max - self.q0, self.q0 - self.limits.q_min
         e_up = np.maximum(dq / up - 1.0, 0.0)
         e_down = np.maximum(-dq / down - 1.0, 0.0)
         e_vel = np.maximum(np.abs(qd) / self.limits.qd_max - 1.0, 0.0)
         e_acc = np.maximum(np.abs(qdd) / self.limits.qdd_max - 1.0, 0.0)
+        if not (e_up.any() or e_down.any() or e_vel.any() or e_acc.any()):
+            return 0.0, None
         n = dq.shape[0]
         value = float(np.sum(e_up ** 2 + e_down ** 2 + e_vel ** 2 + e_acc ** 2)) / n
         g_q = 2.0 * (e_up / up - e_down / down) / n
@@ -289,21 +298,22 @@ class ExcitationProblem:
                 + np.einsum("kj,jkf->jf", g_qdd, basis.qdd))
         return value, grad
 
-    def collision_penalty_gradient(self, x: np.ndarray) -> tuple[float, np.ndarray]:
-        """The collision penalty of one coefficient set (6, K) and its gradient (6, K), from the
-        capsule distances' exact derivatives in the joint angles at the samples inside a required
-        distance (+ buffer) only."""
+    def collision_penalty_gradient(self, x: np.ndarray) -> tuple[float, np.ndarray | None]:
+        """The collision penalty of one coefficient set (6, K) and its gradient (6, K) (None: no
+        sample inside a required distance, so zero), from the capsule distances' exact derivatives
+        in the joint angles at the samples inside a required distance (+ buffer) only."""
         basis = self.basis_collision
-        q = basis.evaluate(x[None])[0][0] + self.q0                           # (N, 6)
+        q = basis.evaluate_one(x, "q")[0] + self.q0                           # (N, 6)
         n = q.shape[0]
         d = self.capsules.distances(self.spec, q)[:, self.checked]
         short = np.maximum(self.required - d, 0.0)
         rows = np.flatnonzero(np.any(short > 0, axis=1))
-        grad = np.zeros((6, self.n_free))
         value = float(np.sum((short / COLLISION_SCALE_M) ** 2)) / n
         if not len(rows):
-            return value, grad
-        d_dq = self.capsules.distance_jacobians(self.spec, q[rows])[1][:, self.checked]   # (R, P, 6)
+            return value, None
+        where = np.zeros((len(rows), self.capsules.n_pairs), dtype=bool)   # the derivatives needed
+        where[:, self.checked] = short[rows] > 0
+        d_dq = self.capsules.distance_derivatives(self.spec, q[rows], where)[:, self.checked]   # (R, P, 6)
         g_d = -2.0 * short[rows] / COLLISION_SCALE_M ** 2 / n                  # (R, P)
         g_q = np.einsum("rp,rpj->rj", g_d, d_dq)                               # (R, 6)
         grad = np.einsum("rj,jrf->jf", g_q, basis.q[:, rows])

@@ -55,8 +55,8 @@ def _fill_kernel(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray
     out = np.empty((n, 6, N_PARAMS))  # the kernel writes every entry
     geometry, axes = _kernel_geometry(spec)
     q, qd, qdd = (np.ascontiguousarray(x) for x in (q, qd, qdd))
-    threads = kernel_threads()
-    if threads == 1 or n < PARALLEL_MIN_SAMPLES:
+    threads = 1 if n < PARALLEL_MIN_SAMPLES else kernel_threads()  # os.cpu_count() costs ~50 µs a call
+    if threads == 1:
         _regressor_kernel.fill(out, q, qd, qdd, geometry, axes, float(friction_eps))
         return out
     if _pool is None or _pool._max_workers != threads:
