@@ -7,7 +7,7 @@ what it leaves to the data (:func:`choose_on_data`).
 ∫q̇, δ chosen by blocked CV) and each joint's friction terms chosen by blocked CV on the
 identification data given (:mod:`urident.ident.friction_select`): the same procedure on any arm.
 With those terms, the measured torque's lead over the motion is chosen by the same CV from
-:data:`TORQUE_LEAD_GRID` (:func:`urident.ident.crossval.select_torque_lead`; 8 ms on the UR10e run);
+:data:`TORQUE_LEAD_GRID` (:func:`urident.ident.crossval.select_torque_lead`; 8 ms on the UR10e run).
 Last, the acceleration filter's corner, by the same CV from :data:`ACCELERATION_CORNER_GRID`
 (:func:`urident.ident.crossval.select_acceleration_corner`; 45 Hz on the UR10e run, whose torque
 follows the arm's fast motion). ``PresetChoice.data`` is then the data to fit, and
