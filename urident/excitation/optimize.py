@@ -25,7 +25,8 @@ Method (measured against L-BFGS-B with forward differences and a smooth bound of
 * Starts run in ``workers`` spawned processes with one BLAS thread each, and so does this process (``workers=0``, the
   default for a single start: in this process). On a shared machine, threaded BLAS made the small matrix products of one evaluation
   10-70 times slower (eigh of 52×52: 58 ms against 0.7 ms). Every start's result is independent of
-  the others and of the order they run in, so a seed gives one trajectory.
+  the others and of the order they run in, so a seed gives one trajectory on a given machine and
+  numpy/BLAS build (another CPU's BLAS kernels change the last bits, and the path: docs/excitation.md).
 * ``budget_s`` caps the search's wall time; :class:`Convergence` says how far from converged it
   stopped.
 * The result is projected onto the limits at the controller rate, and shrunk towards q0 if the dense
