@@ -10,7 +10,7 @@ from urident.model import available_robots, joint_torques, load_robot, parameter
 from urident.model.base import base_parameters
 from urident.model.check import dh_poses
 from urident.model.kinematics import frame_poses
-from urident.model.regressor import kernel_available
+from urident.model.regressor import kernel_available, weighted_state_derivatives
 from urident.model.parameters import body_params
 from urident.model.pinocchio_model import TorqueModel, build_collision_model, build_model
 
@@ -208,6 +208,27 @@ def test_model_cli_json(capsys):
     assert json.loads(capsys.readouterr().out)["n_base"] == 33
     assert main(["model", "--robot", "nope"]) == 2
     assert "unknown robot 'nope'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("name", ["ur5", "ur10e", "ur3", "ur20"])
+def test_weighted_state_derivatives_kernel_matches_regressor_differences(name, rng):
+    # the kernel recomputes only the bodies a change moves; the numpy path forms all 19 regressors
+    spec = load_robot(name)
+    q, qd, qdd = rng.uniform(-3, 3, (3, 50, 6))
+    weights = rng.standard_normal((50, 6, 78))
+    fast = weighted_state_derivatives(spec, q, qd, qdd, weights, 1e-8)
+    slow = weighted_state_derivatives(spec, q, qd, qdd, weights, 1e-8, backend="numpy")
+    assert fast.shape == (18, 50) and np.abs(slow).max() > 1.0
+    np.testing.assert_allclose(fast, slow, rtol=0, atol=1e-6 * np.abs(slow).max())
+    np.testing.assert_allclose(fast[12:], slow[12:], rtol=0, atol=1e-12 * np.abs(slow).max())  # exact in q̈
+    # against central differences of the weighted sum at a larger step (no kernel involved)
+    total = lambda a, b, c: np.einsum("kjp,kjp->k", weights, regressor(spec, a, b, c).reshape(50, 6, 78))  # noqa: E731
+    h, e = 1e-6, np.eye(6)
+    central = np.stack([(total(q + h * e[j], qd, qdd) - total(q - h * e[j], qd, qdd)) / (2 * h) for j in range(6)]
+                       + [(total(q, qd + h * e[j], qdd) - total(q, qd - h * e[j], qdd)) / (2 * h) for j in range(6)])
+    np.testing.assert_allclose(fast[:12], central, rtol=0, atol=1e-5 * np.abs(central).max())
+    with pytest.raises(ValueError, match="weights"):
+        weighted_state_derivatives(spec, q, qd, qdd, weights[:, :, :70], 1e-8)
 
 
 def test_threaded_kernel_equals_single_thread(rng, monkeypatch):

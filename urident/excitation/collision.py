@@ -103,7 +103,21 @@ class CapsuleModel:
 
     def distance_derivatives(self, spec: RobotSpec, q: np.ndarray, where: np.ndarray | None = None) -> np.ndarray:
         """The distances' derivatives in the joint angles (N, P + F, 6) at the entries ``where``
-        (N, P + F) is true, zero elsewhere (default: all).
+        (N, P + F) is true, zero elsewhere (default: all); the compiled kernel where built, else
+        :meth:`numpy_distance_derivatives` (the same formulas)."""
+        q = np.ascontiguousarray(np.atleast_2d(q), dtype=float)
+        if _capsule_kernel is not None and len(self.frame) <= KERNEL_MAX_CAPSULES:
+            mask = np.ones((q.shape[0], self.n_pairs), dtype=bool) if where is None else where
+            out = np.empty((q.shape[0], self.n_pairs, 6))  # the kernel writes every entry
+            capsules, pairs, floor, _ = self._kernel_arguments
+            _capsule_kernel.derivatives(out, q, *packed_joints(spec), capsules, pairs, floor,
+                                        np.ascontiguousarray(mask, dtype=np.uint8))
+            return out
+        return self.numpy_distance_derivatives(spec, q, where)
+
+    def numpy_distance_derivatives(self, spec: RobotSpec, q: np.ndarray,
+                                   where: np.ndarray | None = None) -> np.ndarray:
+        """:meth:`distance_derivatives` in numpy.
 
         A distance is that of the two closest points, which move with their links: its derivative
         is the unit normal between them times their velocities z_i × (c − o_i) for every joint i

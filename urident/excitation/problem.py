@@ -22,23 +22,26 @@ A mounted tool (``spec.tool``) is part of the collision model either way.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 import scipy.linalg
+import scipy.linalg.lapack
 
 from urident.excitation.collision import CapsuleModel, capsule_model
 from urident.excitation.constraints import Limits, Margins, joint_scale_factors
 from urident.excitation.criteria import CRITERIA, gram_criteria, reference_scales
 from urident.excitation.fourier import FourierBasis, FourierTrajectory, base_frequency
-from urident.excitation.gradient import STATE_STEP, chain, criterion_weights, perturbed_states, state_derivatives
+from urident.excitation.gradient import STATE_STEP, chain, criterion_weights
 from urident.model.base import BaseParameters, base_parameters
 from urident.model.parameters import N_PARAMS, tool_body_vector
-from urident.model.regressor import regressor_blocks
+from urident.model.regressor import regressor_blocks, weighted_state_derivatives
 from urident.model.robot import RobotSpec
 
 PAPER_Q0 = (0.0, -np.pi / 2, 0.0, 0.0, 0.0, 0.0)  # paper section IV-C: q2,0 = −π/2, others 0
 PENALTY_WEIGHT = 1.0e3
 KINEMATIC_WEIGHT = 1.0e4
+EIG_ABSTOL = 2.0 * np.finfo(float).tiny  # LAPACK's dsyevr: the most accurate eigenvalues
 COLLISION_SCALE_M = 0.01  # a shortfall of this much costs the collision penalty's weight
 #: ``for_payload``: joints 1-3 keep within this fraction of their velocity and acceleration limits.
 ARM_JOINT_FRACTION = 0.2
@@ -167,6 +170,8 @@ class ExcitationProblem:
         self.n_columns = len(self.scales)
         # the columns are a linear map of each sample's 78 regressor entries: Θ = blocks @ column_map
         self.column_map = np.ascontiguousarray(self.columns(np.eye(N_PARAMS)[:, None, :])[:, 0, :])
+        # the base columns are a selection of them: a gather and a scatter (exact) instead of products
+        self.column_index = None if s.for_payload else np.asarray(self.base.independent)
         self.evaluations = 0
 
     # -- building blocks ---------------------------------------------------------------------
@@ -225,33 +230,49 @@ class ExcitationProblem:
         The criterion's derivative in the Gram matrix is ``W`` (from its eigenvectors), so its
         derivative in the stacked columns is ``H = 2/m · Θ S⁻¹ W S⁻¹``; the regressor's derivatives
         in each sample's state (q, q̇ by forward differences, q̈ exactly: Θ is linear in it) are
-        18 extra regressor evaluations per sample, one batch, and each state is linear in the
-        coefficients (:class:`FourierBasis`). The torque penalty uses the same derivatives; the
-        kinematic penalty is differentiated analytically, the collision penalty through the capsule
-        distances' exact derivatives in q, only at samples inside a required distance."""
+        taken on ``H``'s weighted sum (:func:`~urident.model.regressor.weighted_state_derivatives`),
+        and each state is linear in the coefficients (:class:`FourierBasis`). The torque penalty
+        uses the same derivatives; the kinematic penalty is differentiated analytically, the
+        collision penalty through the capsule distances' exact derivatives in q, only at samples
+        inside a required distance."""
         x = flat.reshape(6, self.n_free)
         basis = self.basis_criterion
         dq, qd, qdd = basis.evaluate_one(x)                                   # (N, 6)
         n = dq.shape[0]
-        states = perturbed_states(dq + self.q0, qd, qdd, STATE_STEP)
-        blocks = regressor_blocks(self.spec, *(s.reshape(-1, 6) for s in states)).reshape(
-            len(states[0]), n, 6, -1)
+        q = dq + self.q0
+        point = regressor_blocks(self.spec, q, qd, qdd)                       # (N, 6, 78)
         self.evaluations += 1
-        point = blocks[0]
         # 2-D products: one BLAS call instead of one per sample (the same sums, bit for bit)
-        flat_theta = point.reshape(-1, N_PARAMS) @ self.column_map           # (6N, b)
+        flat_point = point.reshape(-1, N_PARAMS)
+        if self.column_index is None:
+            flat_theta = flat_point @ self.column_map                          # (6N, b)
+        else:
+            flat_theta = flat_point[:, self.column_index]
         inv = 1.0 / self.scales
         lam = (flat_theta.T @ flat_theta) / n * inv[:, None] * inv[None, :]
         if not np.all(np.isfinite(lam)):  # a line-search trial far outside the limits: refuse the step
             return np.inf, np.zeros_like(flat)
         # not LAPACK's evd: 30× slower with contended BLAS threads; lam was checked finite above
-        eig, vec = scipy.linalg.eigh(lam, driver="evr", check_finite=False)
+        if self.settings.criterion == "cond":  # only the two extreme pairs carry weight: two
+            # subset solves cost half a full one; abstol: bisection to full relative accuracy
+            ends = [scipy.linalg.lapack.dsyevr(lam, compute_v=1, range="I", il=k, iu=k, abstol=EIG_ABSTOL)
+                    for k in (1, lam.shape[0])]
+            if any(e[-1] != 0 for e in ends):
+                return np.inf, np.zeros_like(flat)
+            eig, vec = np.concatenate([e[0][:1] for e in ends]), np.concatenate([e[1][:, :1] for e in ends], axis=1)
+        else:
+            eig, vec = scipy.linalg.eigh(lam, driver="evr", check_finite=False)
         eig = np.maximum(eig, 1e-300)
         crit, weights = criterion_weights(eig, self.settings.criterion)
         w_mat = (vec * weights) @ vec.T
         # the derivative in the regressor's 78 columns of every sample: criterion, then torque
-        adjoint = (((2.0 / n) * (flat_theta @ (inv[:, None] * w_mat * inv[None, :]))) @ self.column_map.T
-                   ).reshape(n, 6, N_PARAMS)
+        d_theta = (2.0 / n) * (flat_theta @ (inv[:, None] * w_mat * inv[None, :]))   # (6N, b)
+        if self.column_index is None:
+            adjoint = (d_theta @ self.column_map.T).reshape(n, 6, N_PARAMS)
+        else:
+            adjoint = np.zeros_like(flat_point)
+            adjoint[:, self.column_index] = d_theta
+            adjoint = adjoint.reshape(n, 6, N_PARAMS)
         loads = [self.p_nominal] if self.p_payload is None else [self.p_nominal, self.p_nominal + self.p_payload]
         taus = [point @ p for p in loads]                                     # (N, 6) each
         excess = [np.maximum(np.abs(tau) / self.limits.tau_max - 1.0, 0.0) for tau in taus]
@@ -262,8 +283,7 @@ class ExcitationProblem:
                 g_tau = np.where(worst == k, 2.0 * excess[k] * np.sign(taus[k]) / self.limits.tau_max, 0.0) / n
                 if np.any(g_tau):
                     adjoint += PENALTY_WEIGHT * g_tau[..., None] * p
-        # one contraction over every perturbed state, then differences in each state variable
-        d_state = state_derivatives(np.einsum("kjp,skjp->sk", adjoint, blocks), STATE_STEP)  # (18, N)
+        d_state = weighted_state_derivatives(self.spec, q, qd, qdd, adjoint, STATE_STEP)  # (18, N)
         grad = chain(basis, d_state)
 
         # kinematic penalty (linear in the coefficients)
@@ -279,24 +299,28 @@ class ExcitationProblem:
 
     def kinematic_penalty_gradient(self, x: np.ndarray) -> tuple[float, np.ndarray | None]:
         """:meth:`kinematic_penalty` of one coefficient set (6, K) and its gradient (6, K) (None:
-        within every limit, so zero)."""
-        basis = self.basis_limits
-        dq, qd, qdd = basis.evaluate_one(x)
-        up, down = self.limits.q_max - self.q0, self.q0 - self.limits.q_min
-        e_up = np.maximum(dq / up - 1.0, 0.0)
-        e_down = np.maximum(-dq / down - 1.0, 0.0)
-        e_vel = np.maximum(np.abs(qd) / self.limits.qd_max - 1.0, 0.0)
-        e_acc = np.maximum(np.abs(qdd) / self.limits.qdd_max - 1.0, 0.0)
-        if not (e_up.any() or e_down.any() or e_vel.any() or e_acc.any()):
+        within every limit, so zero): one product with :attr:`_limit_map`, whose columns are the
+        limit grid's q − q0 over its upper and (negated) lower room, q̇ and q̈ over their limits."""
+        n = self.basis_limits.t.shape[0]
+        v = (np.ascontiguousarray(x)[:, None, :] @ self._limit_map)[:, 0, :]     # (6, 4N)
+        v[:, 2 * n:] = np.abs(v[:, 2 * n:])
+        excess = np.maximum(v - 1.0, 0.0)
+        if not excess.any():
             return 0.0, None
-        n = dq.shape[0]
-        value = float(np.sum(e_up ** 2 + e_down ** 2 + e_vel ** 2 + e_acc ** 2)) / n
-        g_q = 2.0 * (e_up / up - e_down / down) / n
-        g_qd = 2.0 * e_vel * np.sign(qd) / self.limits.qd_max / n
-        g_qdd = 2.0 * e_acc * np.sign(qdd) / self.limits.qdd_max / n
-        grad = (np.einsum("kj,jkf->jf", g_q, basis.q) + np.einsum("kj,jkf->jf", g_qd, basis.qd)
-                + np.einsum("kj,jkf->jf", g_qdd, basis.qdd))
-        return value, grad
+        value = float(np.sum(excess ** 2)) / n
+        g_v = (2.0 / n) * excess
+        g_v[:, 2 * n:] *= np.sign((np.ascontiguousarray(x)[:, None, :] @ self._limit_map[:, :, 2 * n:])[:, 0, :])
+        return value, (self._limit_map @ g_v[:, :, None])[:, :, 0]
+
+    @cached_property
+    def _limit_map(self) -> np.ndarray:
+        """(6, K, 4N): the free coefficients to q − q0 over (q_max − q0), −(q − q0) over (q0 − q_min),
+        q̇ over q̇_max and q̈ over q̈_max on the limit grid."""
+        b, lim = self.basis_limits, self.limits
+        up, down = (lim.q_max - self.q0)[:, None, None], (self.q0 - lim.q_min)[:, None, None]
+        stacked = np.concatenate([b.q / up, -b.q / down, b.qd / lim.qd_max[:, None, None],
+                                  b.qdd / lim.qdd_max[:, None, None]], axis=1)        # (6, 4N, K)
+        return np.ascontiguousarray(stacked.transpose(0, 2, 1))
 
     def collision_penalty_gradient(self, x: np.ndarray) -> tuple[float, np.ndarray | None]:
         """The collision penalty of one coefficient set (6, K) and its gradient (6, K) (None: no

@@ -65,46 +65,59 @@ static int is_identity(const double *r) {
         && r[6] == 0.0 && r[7] == 0.0 && r[8] == 1.0;
 }
 
+/* The chain entering a joint: the parent's w, wd, origin acceleration, and lin/ang of the joints before. */
+typedef struct {
+    double w[3], wd[3], a[3], lin[NJ][3], ang[NJ][3];
+} chain_state;
+
+/* Across joint i: the origin's acceleration, w, wd and (with motion) lin/ang of joints k <= i, in K_i. */
+static void advance(const double *geom, const unsigned char *axes, const int *identity, int i, double c,
+                    double s, double qd, double qdd, chain_state *st, int motion) {
+    const double *p = geom + 12 * i, *r0 = identity[i] ? NULL : geom + 12 * i + 3;
+    int axis = axes[i];
+    double tmp[3], t1[3], t2[3];
+    cross3(st->wd, p, t1);
+    cross3(st->w, p, t2);
+    cross3(st->w, t2, tmp);
+    tmp[0] += st->a[0] + t1[0]; tmp[1] += st->a[1] + t1[1]; tmp[2] += st->a[2] + t1[2];
+    rot_t(r0, axis, c, s, tmp, st->a);
+    rot_t(r0, axis, c, s, st->w, st->w);
+    rot_t(r0, axis, c, s, st->wd, st->wd);
+    double e[3] = {0, 0, 0};
+    e[axis] = 1.0;
+    cross3(st->w, e, tmp);
+    st->wd[0] += tmp[0] * qd; st->wd[1] += tmp[1] * qd; st->wd[2] += tmp[2] * qd;
+    st->wd[axis] += qdd;
+    st->w[axis] += qd;
+    if (!motion) return;
+    for (int k = 0; k < i; k++) {
+        cross3(st->ang[k], p, tmp);
+        tmp[0] += st->lin[k][0]; tmp[1] += st->lin[k][1]; tmp[2] += st->lin[k][2];
+        rot_t(r0, axis, c, s, tmp, st->lin[k]);
+        rot_t(r0, axis, c, s, st->ang[k], st->ang[k]);
+    }
+    st->lin[i][0] = st->lin[i][1] = st->lin[i][2] = 0.0;
+    st->ang[i][0] = e[0]; st->ang[i][1] = e[1]; st->ang[i][2] = e[2];
+}
+
 static void fill_sample(const double *geom, const unsigned char *axes, const int *identity, double eps,
                         const double *q, const double *qd, const double *qdd, double *out) {
-    double w[3] = {0, 0, 0}, wd[3] = {0, 0, 0}, a[3], tmp[3], t1[3], t2[3];
-    double lin[NJ][3], ang[NJ][3], y[6][10];
+    chain_state st;
+    double y[6][10];
     const double *gravity = geom + 12 * NJ;
-    a[0] = -gravity[0]; a[1] = -gravity[1]; a[2] = -gravity[2];
+    memset(&st, 0, sizeof st);
+    st.a[0] = -gravity[0]; st.a[1] = -gravity[1]; st.a[2] = -gravity[2];
     /* Entries no body reaches: row k holds bodies i >= k only, plus its own rotor/friction terms. */
     for (int k = 0; k < NJ; k++) {
         memset(out + k * NP, 0, sizeof(double) * 10 * k);
         memset(out + k * NP + 60, 0, sizeof(double) * 18);
     }
     for (int i = 0; i < NJ; i++) {
-        const double *p = geom + 12 * i, *r0 = identity[i] ? NULL : geom + 12 * i + 3;
-        int axis = axes[i];
-        double c = cos(q[i]), s = sin(q[i]);
-        cross3(wd, p, t1);
-        cross3(w, p, t2);
-        cross3(w, t2, tmp);
-        tmp[0] += a[0] + t1[0]; tmp[1] += a[1] + t1[1]; tmp[2] += a[2] + t1[2];
-        rot_t(r0, axis, c, s, tmp, a);
-        rot_t(r0, axis, c, s, w, w);
-        rot_t(r0, axis, c, s, wd, wd);
-        double e[3] = {0, 0, 0};
-        e[axis] = 1.0;
-        cross3(w, e, tmp);
-        wd[0] += tmp[0] * qd[i]; wd[1] += tmp[1] * qd[i]; wd[2] += tmp[2] * qd[i];
-        wd[axis] += qdd[i];
-        w[axis] += qd[i];
-        for (int k = 0; k < i; k++) {
-            cross3(ang[k], p, tmp);
-            tmp[0] += lin[k][0]; tmp[1] += lin[k][1]; tmp[2] += lin[k][2];
-            rot_t(r0, axis, c, s, tmp, lin[k]);
-            rot_t(r0, axis, c, s, ang[k], ang[k]);
-        }
-        lin[i][0] = lin[i][1] = lin[i][2] = 0.0;
-        ang[i][0] = e[0]; ang[i][1] = e[1]; ang[i][2] = e[2];
-        body_wrench(w, wd, a, y);
+        advance(geom, axes, identity, i, cos(q[i]), sin(q[i]), qd[i], qdd[i], &st, 1);
+        body_wrench(st.w, st.wd, st.a, y);
         for (int k = 0; k <= i; k++) {
             double *row = out + k * NP + 10 * i;
-            const double *v = lin[k], *u = ang[k];
+            const double *v = st.lin[k], *u = st.ang[k];
             for (int col = 0; col < 10; col++) {
                 row[col] = v[0] * y[0][col] + v[1] * y[1][col] + v[2] * y[2][col]
                          + u[0] * y[3][col] + u[1] * y[4][col] + u[2] * y[5][col];
@@ -149,8 +162,124 @@ static PyObject *fill(PyObject *self, PyObject *args) {
     Py_RETURN_NONE;
 }
 
+/* ---- derivatives of a weighted sum of one sample's regressor (the excitation gradient) ----
+ * s = sum_{k,p} A[k][p] Theta[k][p]. Body i's columns give s_i = sum_{r,col} M_i[r][col] Y_i[r][col]
+ * with M_i = sum_{k<=i} motion_k (x) A[k][10i..10i+9] (motion_k = [lin_k; ang_k] in K_i). A change of
+ * q_j, qd_j or qdd_j leaves bodies i < j as they are, and one of qd_j or qdd_j leaves every motion_k
+ * (so M_i) as it is: each derivative recomputes only bodies i >= j, from the chain entering joint j. */
+static void weight_map(const chain_state *st, int i, const double *weights, double m[6][10]) {
+    for (int r = 0; r < 6; r++)
+        for (int col = 0; col < 10; col++) m[r][col] = 0.0;
+    for (int k = 0; k <= i; k++) {
+        const double *wk = weights + k * NP + 10 * i;
+        double v[6] = {st->lin[k][0], st->lin[k][1], st->lin[k][2], st->ang[k][0], st->ang[k][1], st->ang[k][2]};
+        for (int r = 0; r < 6; r++)
+            for (int col = 0; col < 10; col++) m[r][col] += v[r] * wk[col];
+    }
+}
+
+static double pair_sum(double m[6][10], double y[6][10]) {
+    double total = 0.0;
+    for (int r = 0; r < 6; r++)
+        for (int col = 0; col < 10; col++) total += m[r][col] * y[r][col];
+    return total;
+}
+
+static double pair_sum_change(double m[6][10], double y[6][10], double y0[6][10]) {
+    double total = 0.0;
+    for (int r = 0; r < 6; r++)
+        for (int col = 0; col < 10; col++) total += m[r][col] * (y[r][col] - y0[r][col]);
+    return total;
+}
+
+/* out[18]: ds/dq_j, ds/dqd_j (forward differences of h), ds/dqdd_j (exact: unit steps, Theta is linear in qdd). */
+static void derive_sample(const double *geom, const unsigned char *axes, const int *identity, double eps, double h,
+                          const double *q, const double *qd, const double *qdd, const double *weights,
+                          double *out, Py_ssize_t stride) {
+    chain_state entry[NJ], st;
+    double cq[NJ], sq[NJ], y0[NJ][6][10], m0[NJ][6][10], v0[NJ], y[6][10], m[6][10];
+    const double *gravity = geom + 12 * NJ;
+    memset(&st, 0, sizeof st);
+    st.a[0] = -gravity[0]; st.a[1] = -gravity[1]; st.a[2] = -gravity[2];
+    for (int i = 0; i < NJ; i++) {
+        cq[i] = cos(q[i]); sq[i] = sin(q[i]);
+        entry[i] = st;
+        advance(geom, axes, identity, i, cq[i], sq[i], qd[i], qdd[i], &st, 1);
+        body_wrench(st.w, st.wd, st.a, y0[i]);
+        weight_map(&st, i, weights, m0[i]);
+        v0[i] = pair_sum(m0[i], y0[i]);
+    }
+    for (int j = 0; j < NJ; j++) {
+        /* q_j + h: the motion vectors change too */
+        double change = 0.0;
+        st = entry[j];
+        for (int i = j; i < NJ; i++) {
+            double c = cq[i], s = sq[i];
+            if (i == j) { c = cos(q[j] + h); s = sin(q[j] + h); }
+            advance(geom, axes, identity, i, c, s, qd[i], qdd[i], &st, 1);
+            body_wrench(st.w, st.wd, st.a, y);
+            weight_map(&st, i, weights, m);
+            change += pair_sum(m, y) - v0[i];
+        }
+        out[j * stride] = change / h;
+        /* qd_j + h, then qdd_j + 1: the same motion vectors, so the same M_i */
+        for (int kind = 0; kind < 2; kind++) {
+            double step = kind == 0 ? h : 1.0;
+            change = 0.0;
+            st = entry[j];
+            for (int i = j; i < NJ; i++) {
+                double dqd = (kind == 0 && i == j) ? h : 0.0, dqdd = (kind == 1 && i == j) ? 1.0 : 0.0;
+                advance(geom, axes, identity, i, cq[i], sq[i], qd[i] + dqd, qdd[i] + dqdd, &st, 0);
+                body_wrench(st.w, st.wd, st.a, y);
+                change += pair_sum_change(m0[i], y, y0[i]);
+            }
+            const double *wj = weights + j * NP;
+            if (kind == 0)
+                change += wj[66 + j] * h + wj[72 + j] * (tanh((qd[j] + h) / eps) - tanh(qd[j] / eps));
+            else
+                change += wj[60 + j];
+            out[(6 * (kind + 1) + j) * stride] = change / step;
+        }
+    }
+}
+
+static PyObject *weighted_derivatives(PyObject *self, PyObject *args) {
+    Py_buffer out, q, qd, qdd, weights, geom, axes;
+    double eps, h;
+    if (!PyArg_ParseTuple(args, "w*y*y*y*y*y*y*dd", &out, &q, &qd, &qdd, &weights, &geom, &axes, &eps, &h)) {
+        return NULL;
+    }
+    Py_ssize_t n = q.len / (Py_ssize_t)(sizeof(double) * NJ);
+    int ok = q.len == qd.len && q.len == qdd.len
+          && weights.len == n * (Py_ssize_t)(sizeof(double) * NJ * NP)
+          && out.len == n * (Py_ssize_t)(sizeof(double) * 3 * NJ)
+          && geom.len == (Py_ssize_t)(sizeof(double) * (12 * NJ + 3)) && axes.len == NJ;
+    if (ok) {
+        const double *pq = q.buf, *pqd = qd.buf, *pqdd = qdd.buf, *pw = weights.buf;
+        double *po = out.buf;
+        int identity[NJ];
+        for (int i = 0; i < NJ; i++) identity[i] = is_identity((const double *)geom.buf + 12 * i + 3);
+        Py_BEGIN_ALLOW_THREADS
+        for (Py_ssize_t k = 0; k < n; k++) {
+            derive_sample(geom.buf, axes.buf, identity, eps, h, pq + NJ * k, pqd + NJ * k, pqdd + NJ * k,
+                          pw + NJ * NP * k, po + k, n);
+        }
+        Py_END_ALLOW_THREADS
+    }
+    PyBuffer_Release(&out); PyBuffer_Release(&q); PyBuffer_Release(&qd); PyBuffer_Release(&qdd);
+    PyBuffer_Release(&weights); PyBuffer_Release(&geom); PyBuffer_Release(&axes);
+    if (!ok) {
+        PyErr_SetString(PyExc_ValueError, "regressor kernel: inconsistent buffer sizes");
+        return NULL;
+    }
+    Py_RETURN_NONE;
+}
+
 static PyMethodDef methods[] = {
     {"fill", fill, METH_VARARGS, "fill(out, q, qd, qdd, geometry, axes, eps): write the (N, 6, 78) regressor."},
+    {"weighted_derivatives", weighted_derivatives, METH_VARARGS,
+     "weighted_derivatives(out, q, qd, qdd, weights, geometry, axes, eps, h): write the (18, N) derivatives of "
+     "sum(weights * regressor) per sample in q, qd (forward differences of h) and qdd."},
     {NULL, NULL, 0, NULL},
 };
 

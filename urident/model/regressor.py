@@ -194,6 +194,49 @@ def _fill(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, frict
     out[:, joints, COULOMB_OFFSET + joints] = np.tanh(qd / friction_eps)
 
 
+def perturbed_states(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, h: float
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """States (19, N, 6): the point, then q + h·e_j, q̇ + h·e_j (forward differences) and q̈ + e_j
+    (Θ is linear in q̈), each j = 1..6 in turn."""
+    eye, zero, point = np.eye(6), np.zeros((6, 6)), np.zeros((1, 6))
+    dq_ = np.concatenate([point, h * eye, zero, zero])
+    dqd = np.concatenate([point, zero, h * eye, zero])
+    dqdd = np.concatenate([point, zero, zero, eye])
+    return (q[None] + dq_[:, None], qd[None] + dqd[:, None], qdd[None] + dqdd[:, None])
+
+
+def weighted_state_derivatives(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+                               weights: np.ndarray, h: float, friction_eps: float = DEFAULT_FRICTION_EPS,
+                               backend: str = "auto") -> np.ndarray:
+    """(18, N): the derivatives of each sample's ``s_k = Σ_{j,p} weights[k, j, p] Θ(q_k, q̇_k, q̈_k)[j, p]``
+    in its q_1..6 and q̇_1..6 (forward differences of step ``h``) and q̈_1..6 (exact: Θ is linear in
+    q̈), for (N, 6) states and (N, 6, 78) weights.
+
+    The compiled kernel recomputes only the bodies a change moves (those after the joint), and
+    a change of q̇ or q̈ reuses the point's motion subspaces, without forming the 19 regressors;
+    the numpy path forms them (:func:`perturbed_states`) and differences the sums. The two agree
+    to the differences' rounding (about 1e-7 relative)."""
+    q, qd, qdd = (np.ascontiguousarray(np.atleast_2d(x), dtype=float) for x in (q, qd, qdd))
+    weights = np.ascontiguousarray(weights, dtype=float)
+    n = q.shape[0]
+    if not (q.shape == qd.shape == qdd.shape == (n, 6)) or weights.shape != (n, 6, N_PARAMS):
+        raise ValueError(f"q, qd, qdd must be (N, 6) and weights (N, 6, {N_PARAMS}), got {q.shape}, {qd.shape}, "
+                         f"{qdd.shape} and {weights.shape}")
+    if backend not in BACKENDS:
+        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+    if backend != "numpy" and _regressor_kernel is not None:
+        out = np.empty((18, n))  # the kernel writes every entry
+        geometry, axes = _kernel_geometry(spec)
+        _regressor_kernel.weighted_derivatives(out, q, qd, qdd, weights, geometry, axes, float(friction_eps),
+                                               float(h))
+        return out
+    states = perturbed_states(q, qd, qdd, h)
+    blocks = regressor_blocks(spec, *(s.reshape(-1, 6) for s in states), friction_eps=friction_eps,
+                              backend=backend).reshape(len(states[0]), n, 6, N_PARAMS)
+    values = np.einsum("kjp,skjp->sk", weights, blocks)
+    return np.concatenate([(values[1:13] - values[0]) / h, values[13:19] - values[0]])
+
+
 def joint_torques(spec: RobotSpec, params: np.ndarray, q: np.ndarray, qd: np.ndarray,
                   qdd: np.ndarray, friction_eps: float = DEFAULT_FRICTION_EPS) -> np.ndarray:
     """(N, 6) joint torques Θ(q, q̇, q̈)·p [N m] for a 78-vector ``params``."""
