@@ -197,6 +197,8 @@ def test_capsule_distance_jacobians_match_finite_differences(name, rng):
     for model in (capsules, replace(capsules, b=b)):  # the compiled kernel against the numpy formulas
         np.testing.assert_allclose(model.distance_derivatives(spec, q, where),
                                    model.numpy_distance_derivatives(spec, q, where), rtol=0, atol=1e-12)
+    with pytest.raises(ValueError, match="capsule kernel"):   # an index past the capsules
+        replace(capsules, second=capsules.second + len(capsules.frame)).distance_derivatives(spec, q, where)
 
 
 def test_required_distances_relax_only_pairs_close_by_construction(ur5):

@@ -115,6 +115,26 @@ static void point_jacobian(const unsigned char *axes, double rot[NJ + 1][9], dou
     }
 }
 
+/* The sizes of a call's robot and capsule buffers (n samples, nc capsules, np_ pairs, nf floor
+ * capsules); 0 if they are inconsistent or an index is out of range. */
+static int model_sizes(const Py_buffer *q, const Py_buffer *geom, const Py_buffer *axes, const Py_buffer *caps,
+                       const Py_buffer *pairs, const Py_buffer *floor_caps, Py_ssize_t *n, Py_ssize_t *nc,
+                       Py_ssize_t *np_, Py_ssize_t *nf) {
+    *n = q->len / (Py_ssize_t)(sizeof(double) * NJ);
+    *nc = caps->len / (Py_ssize_t)(sizeof(double) * 8);
+    *np_ = pairs->len / (Py_ssize_t)(sizeof(int32_t) * 2);
+    *nf = floor_caps->len / (Py_ssize_t)sizeof(int32_t);
+    int ok = q->len == *n * (Py_ssize_t)(sizeof(double) * NJ) && *nc <= MAX_CAPSULES
+          && caps->len == *nc * (Py_ssize_t)(sizeof(double) * 8)
+          && geom->len == (Py_ssize_t)(sizeof(double) * 12 * NJ) && axes->len == NJ;
+    const double *pc = caps->buf;
+    const int32_t *pp = pairs->buf, *pf = floor_caps->buf;
+    for (Py_ssize_t c = 0; ok && c < *nc; c++) ok = pc[8 * c] >= -1 && pc[8 * c] < NJ;
+    for (Py_ssize_t m = 0; ok && m < 2 * *np_; m++) ok = pp[m] >= 0 && pp[m] < *nc;
+    for (Py_ssize_t m = 0; ok && m < *nf; m++) ok = pf[m] >= 0 && pf[m] < *nc;
+    return ok;
+}
+
 static PyObject *distances(PyObject *self, PyObject *args) {
     Py_buffer out, q, geom, axes, caps, pairs, floor_caps;
     double floor_height;
@@ -122,19 +142,11 @@ static PyObject *distances(PyObject *self, PyObject *args) {
                           &floor_height)) {
         return NULL;
     }
-    Py_ssize_t n = q.len / (Py_ssize_t)(sizeof(double) * NJ);
-    Py_ssize_t nc = caps.len / (Py_ssize_t)(sizeof(double) * 8);
-    Py_ssize_t np_ = pairs.len / (Py_ssize_t)(sizeof(int32_t) * 2);
-    Py_ssize_t nf = floor_caps.len / (Py_ssize_t)sizeof(int32_t);
-    int ok = q.len == n * (Py_ssize_t)(sizeof(double) * NJ) && nc <= MAX_CAPSULES
-          && caps.len == nc * (Py_ssize_t)(sizeof(double) * 8)
-          && out.len == n * (np_ + nf) * (Py_ssize_t)sizeof(double)
-          && geom.len == (Py_ssize_t)(sizeof(double) * 12 * NJ) && axes.len == NJ;
+    Py_ssize_t n, nc, np_, nf;
+    int ok = model_sizes(&q, &geom, &axes, &caps, &pairs, &floor_caps, &n, &nc, &np_, &nf)
+          && out.len == n * (np_ + nf) * (Py_ssize_t)sizeof(double);
     const double *pc = caps.buf;
     const int32_t *pp = pairs.buf, *pf = floor_caps.buf;
-    for (Py_ssize_t c = 0; ok && c < nc; c++) ok = pc[8 * c] >= -1 && pc[8 * c] < NJ;
-    for (Py_ssize_t m = 0; ok && m < 2 * np_; m++) ok = pp[m] >= 0 && pp[m] < nc;
-    for (Py_ssize_t m = 0; ok && m < nf; m++) ok = pf[m] >= 0 && pf[m] < nc;
     if (ok) {
         const double *pq = q.buf;
         double *po = out.buf;
@@ -174,19 +186,11 @@ static PyObject *derivatives(PyObject *self, PyObject *args) {
     if (!PyArg_ParseTuple(args, "w*y*y*y*y*y*y*y*", &out, &q, &geom, &axes, &caps, &pairs, &floor_caps, &where)) {
         return NULL;
     }
-    Py_ssize_t n = q.len / (Py_ssize_t)(sizeof(double) * NJ);
-    Py_ssize_t nc = caps.len / (Py_ssize_t)(sizeof(double) * 8);
-    Py_ssize_t np_ = pairs.len / (Py_ssize_t)(sizeof(int32_t) * 2);
-    Py_ssize_t nf = floor_caps.len / (Py_ssize_t)sizeof(int32_t);
-    int ok = q.len == n * (Py_ssize_t)(sizeof(double) * NJ) && nc <= MAX_CAPSULES
-          && caps.len == nc * (Py_ssize_t)(sizeof(double) * 8)
-          && out.len == n * (np_ + nf) * (Py_ssize_t)(sizeof(double) * NJ) && where.len == n * (np_ + nf)
-          && geom.len == (Py_ssize_t)(sizeof(double) * 12 * NJ) && axes.len == NJ;
+    Py_ssize_t n, nc, np_, nf;
+    int ok = model_sizes(&q, &geom, &axes, &caps, &pairs, &floor_caps, &n, &nc, &np_, &nf)
+          && out.len == n * (np_ + nf) * (Py_ssize_t)(sizeof(double) * NJ) && where.len == n * (np_ + nf);
     const double *pc = caps.buf;
     const int32_t *pp = pairs.buf, *pf = floor_caps.buf;
-    for (Py_ssize_t c = 0; ok && c < nc; c++) ok = pc[8 * c] >= -1 && pc[8 * c] < NJ;
-    for (Py_ssize_t m = 0; ok && m < 2 * np_; m++) ok = pp[m] >= 0 && pp[m] < nc;
-    for (Py_ssize_t m = 0; ok && m < nf; m++) ok = pf[m] >= 0 && pf[m] < nc;
     if (ok) {
         const double *pq = q.buf;
         const unsigned char *pw = where.buf, *ax = axes.buf;
