@@ -303,13 +303,14 @@ class ExcitationProblem:
         limit grid's q − q0 over its upper and (negated) lower room, q̇ and q̈ over their limits."""
         n = self.basis_limits.t.shape[0]
         v = (np.ascontiguousarray(x)[:, None, :] @ self._limit_map)[:, 0, :]     # (6, 4N)
+        sign = np.sign(v[:, 2 * n:])
         v[:, 2 * n:] = np.abs(v[:, 2 * n:])
         excess = np.maximum(v - 1.0, 0.0)
         if not excess.any():
             return 0.0, None
         value = float(np.sum(excess ** 2)) / n
         g_v = (2.0 / n) * excess
-        g_v[:, 2 * n:] *= np.sign((np.ascontiguousarray(x)[:, None, :] @ self._limit_map[:, :, 2 * n:])[:, 0, :])
+        g_v[:, 2 * n:] *= sign
         return value, (self._limit_map @ g_v[:, :, None])[:, :, 0]
 
     @cached_property
