@@ -18,7 +18,9 @@ from urident.excitation.collision import CoalDistances, capsule_model, segment_d
 from urident.excitation.fourier import FourierBasis, base_frequency, free_coefficients, rest_elimination
 from urident.excitation.optimize import (PAPER_Q0, ExcitationProblem, ExcitationSettings,
                                          optimize_excitation, random_feasible_criteria)
+from urident.excitation.criteria import evaluate_criteria
 from urident.model import load_robot
+from urident.model.base import base_parameters
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 SMALL = dict(harmonics=3, duration_s=8.0, reduced=True, candidates=6, starts=1, iterations=12,
@@ -448,6 +450,28 @@ def test_polish_continues_the_best_on_the_finer_criterion_grid(ur5):
         ExcitationSettings(polish=-1)
     with pytest.raises(ValueError, match="polish"):
         ExcitationSettings(polish_samples=0)
+
+
+def test_search_grids_follow_the_highest_harmonic(ur5):
+    # a fixed count aliases Λ once the trajectory has more cycles: the counts scale with
+    # harmonics · periods unless set, and the problem and the written file use the scaled ones
+    default = ExcitationSettings()
+    counts = {g: default.samples(g) for g in ("criterion", "polish", "collision", "limits")}
+    assert counts == {"criterion": 60, "polish": 100, "collision": 200, "limits": 400}
+    four = replace(default, periods=4)
+    assert all(four.samples(g) == 4 * n for g, n in counts.items())
+    assert replace(four, harmonics=2).samples("criterion") == 60 * 2 * 4 // 5
+    assert replace(four, criterion_samples=70).samples("criterion") == 70     # set: kept
+    problem = ExcitationProblem(ur5, replace(four, reduced=True))
+    assert (len(problem.basis_criterion.t), len(problem.basis_collision.t), len(problem.basis_limits.t)) \
+        == (240, 800, 1600)
+    # on four periods the default order's 60 samples misstate cond: the scaled grid is near the dense one
+    traj = load_trajectory(EXPERIMENTS / "ur5e_sim_gap.yaml")
+    spec, T = traj.spec, traj.trajectory.duration
+    base = base_parameters(spec)
+    cond = lambda n: evaluate_criteria(spec, base, *traj.trajectory.evaluate(np.arange(n) * (T / n))).cond_theta  # noqa: E731
+    dense = cond(int(T * spec.controller_rate_hz))
+    assert abs(cond(four.samples("criterion")) / dense - 1) < 0.02 < abs(cond(60) / dense - 1)
 
 
 @pytest.mark.parametrize("criterion", ["cond", "logdet"])

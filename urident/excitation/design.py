@@ -123,8 +123,8 @@ class ExcitationDesign:
         out = {"criterion": s.criterion, "reduced": s.reduced, "seed": s.seed, "starts": s.starts,
                "screen_iterations": s.screen_iterations, "finalists": s.finalists, "iterations": s.iterations,
                "tolerance": s.tolerance, "hops": s.hops, "hop_rounds": s.hop_rounds, "polish": s.polish,
-               "criterion_samples": s.criterion_samples, "polish_samples": s.polish_samples,
-               "collision_samples": s.collision_samples, "limit_samples": s.limit_samples, "periods": s.periods,
+               "criterion_samples": s.samples("criterion"), "polish_samples": s.samples("polish"),
+               "collision_samples": s.samples("collision"), "limit_samples": s.samples("limits"), "periods": s.periods,
                "select": s.select,
                "wall_s": round(self.wall_s, 3), "cpu_s": round(self.cpu_s, 3), "evaluations": self.evaluations,
                **self.convergence.as_dict()}

@@ -212,8 +212,8 @@ def _problems(spec, settings, base, payload) -> dict[bool, ExcitationProblem]:
     """The search's problem (False) and the polish's on ``polish_samples`` (True)."""
     problem = ExcitationProblem(spec, settings, base, payload)
     fine = problem
-    if settings.polish and settings.polish_samples != settings.criterion_samples:
-        fine = ExcitationProblem(spec, replace(settings, criterion_samples=settings.polish_samples), base, payload)
+    if settings.polish and settings.samples("polish") != settings.samples("criterion"):
+        fine = ExcitationProblem(spec, replace(settings, criterion_samples=settings.samples("polish")), base, payload)
     return {False: problem, True: fine}
 
 
@@ -344,7 +344,7 @@ def _optimize(spec: RobotSpec, settings: ExcitationSettings | None, progress: Ca
                 ended = {s.key: s for s in runner.run(
                     [replace(s, history=(), reason="", done=False, prior_iterations=s.prior_iterations + len(s.history))
                      for s in chosen], min(_POLISH_ITERATIONS, settings.iterations), deadline, polish=True)}
-                say(f"the best {len(chosen)} polished on {settings.polish_samples} criterion samples: "
+                say(f"the best {len(chosen)} polished on {settings.samples('polish')} criterion samples: "
                     f"{', '.join(_show(settings, s.objective) for s in ended.values())}")
                 finalists = [ended.get(s.key, s) for s in finalists]
                 starts = [ended.get(s.key, s) for s in starts]

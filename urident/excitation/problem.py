@@ -4,7 +4,8 @@ exact gradient in the free Fourier coefficients (:mod:`urident.excitation.gradie
 
 * The free coefficients (6 × 2(L−1), rest at both ends built in, see :mod:`fourier`) are the
   variables.
-* The criterion uses the base regressor on a coarse grid (``criterion_samples``); the kinematic
+* The criterion uses the base regressor on a coarse grid (``criterion_samples``; the grids scale with
+  the highest harmonic's cycles, :data:`SAMPLES_PER_CYCLE`); the kinematic
   limits (on a fine grid), collisions (vectorised numpy capsule distances, with a small extra
   buffer) and nominal torques enter as smooth quadratic penalties.
 * :meth:`ExcitationProblem.project` scales each joint's coefficients onto the kinematic limits
@@ -43,6 +44,13 @@ PENALTY_WEIGHT = 1.0e3
 KINEMATIC_WEIGHT = 1.0e4
 EIG_ABSTOL = 2.0 * np.finfo(float).tiny  # LAPACK's dsyevr: the most accurate eigenvalues
 COLLISION_SCALE_M = 0.01  # a shortfall of this much costs the collision penalty's weight
+#: Samples per cycle of the highest harmonic on each of the search's grids: Λ's entries are products
+#: of regressor entries whose harmonics reach a few times the trajectory's, and a fixed count aliases
+#: them once the user asks for more harmonics or periods (60 samples of four periods: cond 33.8 for
+#: a design whose cond at the controller rate is 17.2).
+SAMPLES_PER_CYCLE = {"criterion": 12, "polish": 20, "collision": 40, "limits": 80}
+GRID_FIELDS = {"criterion": "criterion_samples", "polish": "polish_samples",
+               "collision": "collision_samples", "limits": "limit_samples"}
 #: ``for_payload``: joints 1-3 keep within this fraction of their velocity and acceleration limits.
 ARM_JOINT_FRACTION = 0.2
 
@@ -64,18 +72,21 @@ class ExcitationSettings:
     tolerance: float = 2e-3               # converged: the objective fell less than this over
     window: int = 50                      # the last ``window`` iterations (2e-3: 0.1 % of cond Θ̄_B)
     hops: int = 2                         # then restarts from the best, perturbed (basin hopping), in
-    hop_rounds: int = 8                   # at most this many rounds, each from the best so far, each
+    hop_rounds: int = 10                  # at most this many rounds, each from the best so far, each
     hop_scale: float = 0.3                # coefficient scaled by 1 + hop_scale·N(0, 1); a round starts
-    hop_evaluations: int = 16000          # only while the search used fewer evaluations (none: 1 start)
+    hop_evaluations: int = 20000          # only while the search used fewer evaluations (none: 1 start)
     select: str = "finalised"             # the finalists ranked as written (collision-free, no buffer);
                                           # 'objective': by the search's penalised objective
     polish: int = 2                       # then the best this many continue on the criterion on
-    polish_samples: int = 100             # this many samples (the search's is coarser: cheaper)
+    polish_samples: int | None = None     # this many samples (the search's is coarser: cheaper)
     budget_s: float | None = None         # wall-time cap of the search [s]; None: until converged
     workers: int | None = None            # processes running starts (0: none); None: one per core, at most 2
-    criterion_samples: int = 60
-    collision_samples: int = 400
-    limit_samples: int = 800
+    # The grids' sample counts; None: SAMPLES_PER_CYCLE per cycle of the highest harmonic (60, 100,
+    # 200, 400 for the default order 5 over one period). The result is checked and made feasible at
+    # the controller rate (optimize._finalise), so the constraint grids may be coarse.
+    criterion_samples: int | None = None
+    collision_samples: int | None = None
+    limit_samples: int | None = None
     collision_buffer_m: float = 0.01      # extra distance while optimising on the coarse grid
     margins: Margins = field(default_factory=Margins)
     for_payload: bool = False             # criterion: cond of the payload columns (module doc)
@@ -91,10 +102,11 @@ class ExcitationSettings:
             raise ValueError("duration_s must be positive and periods at least 1")
         if len(self.q0) != 6:
             raise ValueError("q0 must have 6 entries")
-        if min(self.candidates, self.starts, self.finalists, self.window, self.criterion_samples,
-               self.collision_samples, self.limit_samples) < 1 or min(self.iterations, self.screen_iterations) < 0:
+        if min(self.candidates, self.starts, self.finalists, self.window,
+               *(self.samples(grid) for grid in SAMPLES_PER_CYCLE if grid != "polish")) < 1 \
+                or min(self.iterations, self.screen_iterations) < 0:
             raise ValueError("sample counts, candidates, starts, finalists and window must be positive")
-        if self.polish < 0 or self.polish_samples < 1:
+        if self.polish < 0 or self.samples("polish") < 1:
             raise ValueError(f"polish must not be negative and polish_samples positive, not {self.polish} and "
                              f"{self.polish_samples}")
         if min(self.hops, self.hop_rounds, self.hop_evaluations) < 0 or not self.hop_scale >= 0:
@@ -116,6 +128,12 @@ class ExcitationSettings:
     @property
     def omega(self) -> float:
         return base_frequency(self.duration_s, self.periods)
+
+    def samples(self, grid: str) -> int:
+        """The sample count of ``grid`` (a key of :data:`SAMPLES_PER_CYCLE`): the one set, else
+        proportional to the cycles of the highest harmonic in the duration (harmonics · periods)."""
+        count = getattr(self, GRID_FIELDS[grid])
+        return SAMPLES_PER_CYCLE[grid] * self.harmonics * self.periods if count is None else count
 
 
 
@@ -152,9 +170,9 @@ class ExcitationProblem:
                              f"{pair}{tool} by {-margins0[k]:.3g} m")
         T, w, L = s.duration_s, s.omega, s.harmonics
         grid = lambda n: np.arange(n) * (T / n)  # noqa: E731  (periodic: t = T equals t = 0)
-        self.basis_criterion = FourierBasis.build(grid(s.criterion_samples), w, L)
-        self.basis_collision = FourierBasis.build(grid(s.collision_samples), w, L)
-        self.basis_limits = FourierBasis.build(grid(s.limit_samples), w, L)
+        self.basis_criterion = FourierBasis.build(grid(s.samples("criterion")), w, L)
+        self.basis_collision = FourierBasis.build(grid(s.samples("collision")), w, L)
+        self.basis_limits = FourierBasis.build(grid(s.samples("limits")), w, L)
         self.n_free = 2 * (L - 1)
         self.p_nominal = spec.nominal_params
         # a tool's load: the torque penalty holds with and without it, as the dense check does
