@@ -43,7 +43,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="offsets q_i,0 [rad] as six comma-separated numbers (default: 0,-pi/2,0,0,0,0)")
     p.add_argument("--starts", type=options.int_range(1, 1000), default=None,
                    help="optimiser starts (default 8: each runs 60 BFGS iterations, the best 2 continue "
-                        "until converged, then up to 10 rounds of 2 perturbed restarts from the best)")
+                        "until converged, then up to 12 rounds of 2 perturbed restarts from the best)")
     p.add_argument("--iterations", type=options.int_range(1, 100000), default=None,
                    help="BFGS iterations per start at most (default 1000; a start ends earlier once "
                         "cond fell less than 0.1 %% over its last 50 iterations), and as many (at most 300) "

@@ -4,9 +4,9 @@
 Every sample's state (q, q̇, q̈) is linear in its joint's free coefficients (:class:`FourierBasis`),
 so the gradient is the sum over samples of the objective's derivative in each state variable times
 the basis. The regressor's derivative in the state is taken per sample
-(:func:`urident.model.regressor.weighted_state_derivatives`): forward differences in q and q̇ (steps
-of 10⁻⁸ agree with central differences to 1e-6 even through tanh(q̇/ε)), exact in q̈ (Θ is linear
-in q̈).
+(:func:`urident.model.regressor.weighted_state_derivatives`): exact in the compiled kernel (reverse
+mode through the recursion); without it, forward differences in q and q̇ (steps of 10⁻⁸ agree with
+central differences to 1e-6 even through tanh(q̇/ε)) and exact in q̈ (Θ is linear in q̈).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import numpy as np
 
 from urident.excitation.fourier import FourierBasis
 
-STATE_STEP = 1e-8  # [rad, rad/s] forward-difference step of the regressor in q and q̇
+STATE_STEP = 1e-8  # [rad, rad/s] forward-difference step in q and q̇ where no compiled kernel is built
 
 
 def chain(basis: FourierBasis, d_state: np.ndarray) -> np.ndarray:

@@ -72,9 +72,9 @@ class ExcitationSettings:
     tolerance: float = 2e-3               # converged: the objective fell less than this over
     window: int = 50                      # the last ``window`` iterations (2e-3: 0.1 % of cond Θ̄_B)
     hops: int = 2                         # then restarts from the best, perturbed (basin hopping), in
-    hop_rounds: int = 10                  # at most this many rounds, each from the best so far, each
+    hop_rounds: int = 12                  # at most this many rounds, each from the best so far, each
     hop_scale: float = 0.3                # coefficient scaled by 1 + hop_scale·N(0, 1); a round starts
-    hop_evaluations: int = 20000          # only while the search used fewer evaluations (none: 1 start)
+    hop_evaluations: int = 24000          # only while the search used fewer evaluations (none: 1 start)
     select: str = "finalised"             # the finalists ranked as written (collision-free, no buffer);
                                           # 'objective': by the search's penalised objective
     polish: int = 2                       # then the best this many continue on the criterion on
@@ -247,7 +247,7 @@ class ExcitationProblem:
 
         The criterion's derivative in the Gram matrix is ``W`` (from its eigenvectors), so its
         derivative in the stacked columns is ``H = 2/m · Θ S⁻¹ W S⁻¹``; the regressor's derivatives
-        in each sample's state (q, q̇ by forward differences, q̈ exactly: Θ is linear in it) are
+        in each sample's state (exact; forward differences in q, q̇ without the compiled kernel) are
         taken on ``H``'s weighted sum (:func:`~urident.model.regressor.weighted_state_derivatives`),
         and each state is linear in the coefficients (:class:`FourierBasis`). The torque penalty
         uses the same derivatives; the kinematic penalty is differentiated analytically, the

@@ -178,75 +178,128 @@ static void weight_map(const chain_state *st, int i, const double *weights, doub
     }
 }
 
-static double pair_sum(double m[6][10], double y[6][10]) {
-    double total = 0.0;
-    for (int r = 0; r < 6; r++)
-        for (int col = 0; col < 10; col++) total += m[r][col] * y[r][col];
-    return total;
+/* out = R0 Rot_axis(q) v: the inverse of rot_t (an adjoint's way back into the parent frame). */
+static inline void rot(const double *r0, int axis, double c, double s, const double *v, double *out) {
+    double u0, u1, u2;
+    if (axis == 2) {
+        u0 = c * v[0] - s * v[1]; u1 = s * v[0] + c * v[1]; u2 = v[2];
+    } else if (axis == 1) {
+        u0 = c * v[0] + s * v[2]; u1 = v[1]; u2 = c * v[2] - s * v[0];
+    } else {
+        u0 = v[0]; u1 = c * v[1] - s * v[2]; u2 = s * v[1] + c * v[2];
+    }
+    if (r0) {
+        out[0] = r0[0] * u0 + r0[1] * u1 + r0[2] * u2;
+        out[1] = r0[3] * u0 + r0[4] * u1 + r0[5] * u2;
+        out[2] = r0[6] * u0 + r0[7] * u1 + r0[8] * u2;
+    } else {
+        out[0] = u0; out[1] = u1; out[2] = u2;
+    }
 }
 
-static double pair_sum_change(double m[6][10], double y[6][10], double y0[6][10]) {
-    double total = 0.0;
-    for (int r = 0; r < 6; r++)
-        for (int col = 0; col < 10; col++) total += m[r][col] * (y[r][col] - y0[r][col]);
-    return total;
+static inline double dot3(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+/* Adds d<m, body_wrench(w, wd, a)>/d(w, wd, a) to gw, gwd, ga (body_wrench's entries differentiated by hand). */
+static void wrench_adjoint(double m[6][10], const double *w, double *gw, double *gwd, double *ga) {
+    ga[0] += m[0][0] + m[4][3] - m[5][2];
+    ga[1] += m[1][0] - m[3][3] + m[5][1];
+    ga[2] += m[2][0] + m[3][2] - m[4][1];
+    gwd[0] += -m[1][3] + m[2][2] + m[3][4] - m[4][9] - m[5][8];
+    gwd[1] += m[0][3] - m[2][1] - m[3][9] + m[4][5] - m[5][7];
+    gwd[2] += -m[0][2] + m[1][1] - m[3][8] - m[4][7] + m[5][6];
+    double cxx = -m[1][2] - m[2][3] + m[4][8] - m[5][9];
+    double cyy = -m[0][1] - m[2][3] - m[3][7] + m[5][9];
+    double czz = -m[0][1] - m[1][2] + m[3][7] - m[4][8];
+    double cxy = m[0][2] + m[1][1] - m[3][8] + m[4][7] - m[5][4] + m[5][5];
+    double cxz = m[0][3] + m[2][1] + m[3][9] + m[4][4] - m[4][6] - m[5][7];
+    double cyz = m[1][3] + m[2][2] - m[3][5] + m[3][6] - m[4][9] + m[5][8];
+    gw[0] += 2.0 * w[0] * cxx + w[1] * cxy + w[2] * cxz;
+    gw[1] += 2.0 * w[1] * cyy + w[0] * cxy + w[2] * cyz;
+    gw[2] += 2.0 * w[2] * czz + w[0] * cxz + w[1] * cyz;
 }
 
-/* out[18]: ds/dq_j, ds/dqd_j (forward differences of h), ds/dqdd_j (exact: unit steps, Theta is linear in qdd). */
-static void derive_sample(const double *geom, const unsigned char *axes, const int *identity, double eps, double h,
+/* out[18]: ds/dq_j, ds/dqd_j, ds/dqdd_j, exact, by reverse mode: one forward pass keeps each joint's
+ * entering and leaving chain; a backward pass carries the adjoints of (w, wd, a, lin_k, ang_k) from
+ * the last body to the first. A rotated vector v' = Rot(q)^T u has dv'/dq = v' x e (e: the axis). */
+static void derive_sample(const double *geom, const unsigned char *axes, const int *identity, double eps,
                           const double *q, const double *qd, const double *qdd, const double *weights,
                           double *out, Py_ssize_t stride) {
-    chain_state entry[NJ], st;
-    double cq[NJ], sq[NJ], y0[NJ][6][10], m0[NJ][6][10], v0[NJ], y[6][10], m[6][10];
+    chain_state entry[NJ + 1];
+    double cq[NJ], sq[NJ], y[NJ][6][10], m[6][10];
     const double *gravity = geom + 12 * NJ;
-    memset(&st, 0, sizeof st);
-    st.a[0] = -gravity[0]; st.a[1] = -gravity[1]; st.a[2] = -gravity[2];
+    memset(&entry[0], 0, sizeof(chain_state));
+    entry[0].a[0] = -gravity[0]; entry[0].a[1] = -gravity[1]; entry[0].a[2] = -gravity[2];
     for (int i = 0; i < NJ; i++) {
         cq[i] = cos(q[i]); sq[i] = sin(q[i]);
-        entry[i] = st;
-        advance(geom, axes, identity, i, cq[i], sq[i], qd[i], qdd[i], &st, 1);
-        body_wrench(st.w, st.wd, st.a, y0[i]);
-        weight_map(&st, i, weights, m0[i]);
-        v0[i] = pair_sum(m0[i], y0[i]);
+        entry[i + 1] = entry[i];
+        advance(geom, axes, identity, i, cq[i], sq[i], qd[i], qdd[i], &entry[i + 1], 1);
+        body_wrench(entry[i + 1].w, entry[i + 1].wd, entry[i + 1].a, y[i]);
     }
-    for (int j = 0; j < NJ; j++) {
-        /* q_j + h: the motion vectors change too */
-        double change = 0.0;
-        st = entry[j];
-        for (int i = j; i < NJ; i++) {
-            double c = cq[i], s = sq[i];
-            if (i == j) { c = cos(q[j] + h); s = sin(q[j] + h); }
-            advance(geom, axes, identity, i, c, s, qd[i], qdd[i], &st, 1);
-            body_wrench(st.w, st.wd, st.a, y);
-            weight_map(&st, i, weights, m);
-            change += pair_sum(m, y) - v0[i];
-        }
-        out[j * stride] = change / h;
-        /* qd_j + h, then qdd_j + 1: the same motion vectors, so the same M_i */
-        for (int kind = 0; kind < 2; kind++) {
-            double step = kind == 0 ? h : 1.0;
-            change = 0.0;
-            st = entry[j];
-            for (int i = j; i < NJ; i++) {
-                double dqd = (kind == 0 && i == j) ? h : 0.0, dqdd = (kind == 1 && i == j) ? 1.0 : 0.0;
-                advance(geom, axes, identity, i, cq[i], sq[i], qd[i] + dqd, qdd[i] + dqdd, &st, 0);
-                body_wrench(st.w, st.wd, st.a, y);
-                change += pair_sum_change(m0[i], y, y0[i]);
+    double gw[3] = {0, 0, 0}, gwd[3] = {0, 0, 0}, ga[3] = {0, 0, 0}, glin[NJ][3], gang[NJ][3];
+    memset(glin, 0, sizeof glin); memset(gang, 0, sizeof gang);
+    for (int i = NJ - 1; i >= 0; i--) {
+        const chain_state *post = &entry[i + 1], *pre = &entry[i];
+        const double *p = geom + 12 * i, *r0 = identity[i] ? NULL : geom + 12 * i + 3;
+        int axis = axes[i];
+        double c = cq[i], s = sq[i], e[3] = {0, 0, 0}, t[3], t2[3], t3[3];
+        e[axis] = 1.0;
+        /* body i's own term: through its wrench and through every motion vector k <= i */
+        weight_map(post, i, weights, m);
+        wrench_adjoint(m, post->w, gw, gwd, ga);
+        for (int k = 0; k <= i; k++) {
+            const double *wk = weights + k * NP + 10 * i;
+            double f[6];
+            for (int r = 0; r < 6; r++) {
+                double total = 0.0;
+                for (int col = 0; col < 10; col++) total += y[i][r][col] * wk[col];
+                f[r] = total;
             }
-            const double *wj = weights + j * NP;
-            if (kind == 0)
-                change += wj[66 + j] * h + wj[72 + j] * (tanh((qd[j] + h) / eps) - tanh(qd[j] / eps));
-            else
-                change += wj[60 + j];
-            out[(6 * (kind + 1) + j) * stride] = change / step;
+            glin[k][0] += f[0]; glin[k][1] += f[1]; glin[k][2] += f[2];
+            gang[k][0] += f[3]; gang[k][1] += f[4]; gang[k][2] += f[5];
+        }
+        /* back through advance(i): w' = W + qd e, wd' = D + qd (W x e) + qdd e, a' = A; W, D, A rotated */
+        double we[3], dr[3], de[3], ae[3];
+        cross3(post->w, e, we);                     /* W x e (W's axis component does not enter) */
+        dr[0] = post->wd[0] - qd[i] * we[0]; dr[1] = post->wd[1] - qd[i] * we[1]; dr[2] = post->wd[2] - qd[i] * we[2];
+        cross3(dr, e, de);
+        cross3(post->a, e, ae);
+        const double *wj = weights + i * NP;
+        double th = tanh(qd[i] / eps);
+        out[(12 + i) * stride] = gwd[axis] + wj[60 + i];
+        out[(6 + i) * stride] = gw[axis] + dot3(gwd, we) + wj[66 + i] + wj[72 + i] * (1.0 - th * th) / eps;
+        double gW[3];
+        cross3(e, gwd, t);
+        gW[0] = gw[0] + qd[i] * t[0]; gW[1] = gw[1] + qd[i] * t[1]; gW[2] = gw[2] + qd[i] * t[2];
+        double dq = dot3(ga, ae) + dot3(gW, we) + dot3(gwd, de);
+        for (int k = 0; k < i; k++) {
+            cross3(post->lin[k], e, t); dq += dot3(glin[k], t);
+            cross3(post->ang[k], e, t); dq += dot3(gang[k], t);
+        }
+        out[i * stride] = dq;
+        /* into the parent frame: T = w x (w x p) + a + wd x p */
+        double gT[3], nw[3], nwd[3];
+        rot(r0, axis, c, s, ga, gT);
+        rot(r0, axis, c, s, gW, nw);
+        rot(r0, axis, c, s, gwd, nwd);
+        cross3(p, gT, t); nwd[0] += t[0]; nwd[1] += t[1]; nwd[2] += t[2];
+        cross3(pre->w, p, t2); cross3(t2, gT, t); nw[0] += t[0]; nw[1] += t[1]; nw[2] += t[2];
+        cross3(gT, pre->w, t3); cross3(p, t3, t); nw[0] += t[0]; nw[1] += t[1]; nw[2] += t[2];
+        memcpy(ga, gT, sizeof gT); memcpy(gw, nw, sizeof nw); memcpy(gwd, nwd, sizeof nwd);
+        for (int k = 0; k < i; k++) {
+            double lam[3];
+            rot(r0, axis, c, s, glin[k], lam);
+            rot(r0, axis, c, s, gang[k], t);
+            cross3(p, lam, t2);
+            gang[k][0] = t[0] + t2[0]; gang[k][1] = t[1] + t2[1]; gang[k][2] = t[2] + t2[2];
+            memcpy(glin[k], lam, sizeof lam);
         }
     }
 }
 
 static PyObject *weighted_derivatives(PyObject *self, PyObject *args) {
     Py_buffer out, q, qd, qdd, weights, geom, axes;
-    double eps, h;
-    if (!PyArg_ParseTuple(args, "w*y*y*y*y*y*y*dd", &out, &q, &qd, &qdd, &weights, &geom, &axes, &eps, &h)) {
+    double eps;
+    if (!PyArg_ParseTuple(args, "w*y*y*y*y*y*y*d", &out, &q, &qd, &qdd, &weights, &geom, &axes, &eps)) {
         return NULL;
     }
     Py_ssize_t n = q.len / (Py_ssize_t)(sizeof(double) * NJ);
@@ -261,7 +314,7 @@ static PyObject *weighted_derivatives(PyObject *self, PyObject *args) {
         for (int i = 0; i < NJ; i++) identity[i] = is_identity((const double *)geom.buf + 12 * i + 3);
         Py_BEGIN_ALLOW_THREADS
         for (Py_ssize_t k = 0; k < n; k++) {
-            derive_sample(geom.buf, axes.buf, identity, eps, h, pq + NJ * k, pqd + NJ * k, pqdd + NJ * k,
+            derive_sample(geom.buf, axes.buf, identity, eps, pq + NJ * k, pqd + NJ * k, pqdd + NJ * k,
                           pw + NJ * NP * k, po + k, n);
         }
         Py_END_ALLOW_THREADS
@@ -278,8 +331,8 @@ static PyObject *weighted_derivatives(PyObject *self, PyObject *args) {
 static PyMethodDef methods[] = {
     {"fill", fill, METH_VARARGS, "fill(out, q, qd, qdd, geometry, axes, eps): write the (N, 6, 78) regressor."},
     {"weighted_derivatives", weighted_derivatives, METH_VARARGS,
-     "weighted_derivatives(out, q, qd, qdd, weights, geometry, axes, eps, h): write the (18, N) derivatives of "
-     "sum(weights * regressor) per sample in q, qd (forward differences of h) and qdd."},
+     "weighted_derivatives(out, q, qd, qdd, weights, geometry, axes, eps): write the (18, N) exact derivatives "
+     "of sum(weights * regressor) per sample in q, qd and qdd."},
     {NULL, NULL, 0, NULL},
 };
 

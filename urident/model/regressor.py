@@ -209,13 +209,13 @@ def weighted_state_derivatives(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, q
                                weights: np.ndarray, h: float, friction_eps: float = DEFAULT_FRICTION_EPS,
                                backend: str = "auto") -> np.ndarray:
     """(18, N): the derivatives of each sample's ``s_k = Σ_{j,p} weights[k, j, p] Θ(q_k, q̇_k, q̈_k)[j, p]``
-    in its q_1..6 and q̇_1..6 (forward differences of step ``h``) and q̈_1..6 (exact: Θ is linear in
-    q̈), for (N, 6) states and (N, 6, 78) weights.
+    in its q_1..6, q̇_1..6 and q̈_1..6, for (N, 6) states and (N, 6, 78) weights.
 
-    The compiled kernel recomputes only the bodies a change moves (those after the joint), and
-    a change of q̇ or q̈ reuses the point's motion subspaces, without forming the 19 regressors;
-    the numpy path forms them (:func:`perturbed_states`) and differences the sums. The two agree
-    to the differences' rounding (about 1e-7 relative)."""
+    The compiled kernel differentiates exactly, in reverse mode: one pass out along the chain,
+    one back carrying the adjoints of each body's velocity, acceleration and motion subspaces
+    (about the cost of three regressor rows, not 19 regressors). The numpy path forms the 19
+    regressors of forward steps ``h`` in q and q̇ and unit steps in q̈ (:func:`perturbed_states`)
+    and differences the sums: exact in q̈, within about 1e-7 relative of the kernel in q and q̇."""
     q, qd, qdd = (np.ascontiguousarray(np.atleast_2d(x), dtype=float) for x in (q, qd, qdd))
     weights = np.ascontiguousarray(weights, dtype=float)
     n = q.shape[0]
@@ -227,8 +227,7 @@ def weighted_state_derivatives(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, q
     if backend != "numpy" and _regressor_kernel is not None:
         out = np.empty((18, n))  # the kernel writes every entry
         geometry, axes = _kernel_geometry(spec)
-        _regressor_kernel.weighted_derivatives(out, q, qd, qdd, weights, geometry, axes, float(friction_eps),
-                                               float(h))
+        _regressor_kernel.weighted_derivatives(out, q, qd, qdd, weights, geometry, axes, float(friction_eps))
         return out
     states = perturbed_states(q, qd, qdd, h)
     blocks = regressor_blocks(spec, *(s.reshape(-1, 6) for s in states), friction_eps=friction_eps,
