@@ -452,6 +452,11 @@ def test_polish_continues_the_best_on_the_finer_criterion_grid(ur5):
         ExcitationSettings(polish_samples=0)
 
 
+def counts_as_fields(counts: dict) -> dict:
+    return {"criterion_samples": counts["criterion"], "polish_samples": counts["polish"],
+            "collision_samples": counts["collision"], "limit_samples": counts["limits"]}
+
+
 def test_search_grids_follow_the_highest_harmonic(ur5):
     # a fixed count aliases Λ once the trajectory has more cycles: the counts scale with
     # harmonics · periods unless set, and the problem and the written file use the scaled ones
@@ -462,6 +467,12 @@ def test_search_grids_follow_the_highest_harmonic(ur5):
     assert all(four.samples(g) == 4 * n for g, n in counts.items())
     assert replace(four, harmonics=2).samples("criterion") == 60 * 2 * 4 // 5
     assert replace(four, criterion_samples=70).samples("criterion") == 70     # set: kept
+    # at most one per controller tick (20 s at 125 Hz: 2,500), a count set is kept
+    many = replace(default, harmonics=10, periods=10).resolved(125.0)
+    assert (many.criterion_samples, many.polish_samples, many.collision_samples, many.limit_samples) \
+        == (1200, 2000, 2500, 2500)
+    assert replace(default, harmonics=10, periods=10, limit_samples=9000).resolved(125.0).limit_samples == 9000
+    assert default.resolved(500.0) == replace(default, **counts_as_fields(counts))
     problem = ExcitationProblem(ur5, replace(four, reduced=True))
     assert (len(problem.basis_criterion.t), len(problem.basis_collision.t), len(problem.basis_limits.t)) \
         == (240, 800, 1600)

@@ -243,7 +243,7 @@ def design(robot: str | Path | RobotSpec, *, harmonics: int = 5, duration_s: flo
     except ValueError as exc:
         raise ConfigError(f"cannot optimise an excitation for {spec.name}: {exc}") from None
     report = check_trajectory(spec, result.trajectory, limits=result.limits, payload=payload)
-    return ExcitationDesign(spec.name, result.trajectory, result.limits, settings, result.criteria,
+    return ExcitationDesign(spec.name, result.trajectory, result.limits, result.settings, result.criteria,
                             result.convergence, report, result.wall_s, result.cpu_s, result.evaluations, spec,
                             robot_file, result.payload_cond, payload, payload_source if payload is not None else "",
                             tool_source if tool is not None else "")

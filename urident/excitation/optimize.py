@@ -289,7 +289,7 @@ def optimize_excitation(spec: RobotSpec, settings: ExcitationSettings | None = N
 
 def _optimize(spec: RobotSpec, settings: ExcitationSettings | None, progress: Callable[[str], None] | None,
               base: BaseParameters | None, payload) -> ExcitationResult:
-    settings = ExcitationSettings() if settings is None else settings
+    settings = (ExcitationSettings() if settings is None else settings).resolved(spec.controller_rate_hz)
     say = progress or (lambda message: None)
     start_time, cpu_start = time.perf_counter(), time.process_time()
     deadline = None if settings.budget_s is None else time.monotonic() + settings.budget_s

@@ -135,6 +135,13 @@ class ExcitationSettings:
         count = getattr(self, GRID_FIELDS[grid])
         return SAMPLES_PER_CYCLE[grid] * self.harmonics * self.periods if count is None else count
 
+    def resolved(self, rate_hz: float) -> ExcitationSettings:
+        """These settings with every grid's count set: each one not set is :meth:`samples`, at most
+        one per controller tick (the result is checked at that rate; a finer grid adds nothing)."""
+        ticks = max(1, int(round(self.duration_s * rate_hz)))
+        return replace(self, **{name: min(self.samples(grid), ticks) for grid, name in GRID_FIELDS.items()
+                                if getattr(self, name) is None})
+
 
 
 class ExcitationProblem:
