@@ -131,21 +131,31 @@ static void fill_sample(const double *geom, const unsigned char *axes, const int
     }
 }
 
+/* The state buffers' common checks: (N, 6) q, qd, qdd of one length, the geometry and axes of six
+ * joints; sets *n and which joints' fixed rotations are the identity. */
+static int chain_inputs(const Py_buffer *q, const Py_buffer *qd, const Py_buffer *qdd, const Py_buffer *geom,
+                        const Py_buffer *axes, Py_ssize_t *n, int identity[NJ]) {
+    *n = q->len / (Py_ssize_t)(sizeof(double) * NJ);
+    if (q->len != qd->len || q->len != qdd->len || geom->len != (Py_ssize_t)(sizeof(double) * (12 * NJ + 3))
+            || axes->len != NJ)
+        return 0;
+    for (int i = 0; i < NJ; i++) identity[i] = is_identity((const double *)geom->buf + 12 * i + 3);
+    return 1;
+}
+
 static PyObject *fill(PyObject *self, PyObject *args) {
     Py_buffer out, q, qd, qdd, geom, axes;
     double eps;
     if (!PyArg_ParseTuple(args, "w*y*y*y*y*y*d", &out, &q, &qd, &qdd, &geom, &axes, &eps)) {
         return NULL;
     }
-    Py_ssize_t n = q.len / (Py_ssize_t)(sizeof(double) * NJ);
-    int ok = q.len == qd.len && q.len == qdd.len
-          && out.len == n * (Py_ssize_t)(sizeof(double) * NJ * NP)
-          && geom.len == (Py_ssize_t)(sizeof(double) * (12 * NJ + 3)) && axes.len == NJ;
+    Py_ssize_t n;
+    int identity[NJ];
+    int ok = chain_inputs(&q, &qd, &qdd, &geom, &axes, &n, identity)
+          && out.len == n * (Py_ssize_t)(sizeof(double) * NJ * NP);
     if (ok) {
         const double *pq = q.buf, *pqd = qd.buf, *pqdd = qdd.buf;
         double *po = out.buf;
-        int identity[NJ];
-        for (int i = 0; i < NJ; i++) identity[i] = is_identity((const double *)geom.buf + 12 * i + 3);
         Py_BEGIN_ALLOW_THREADS
         for (Py_ssize_t k = 0; k < n; k++) {
             fill_sample(geom.buf, axes.buf, identity, eps, pq + NJ * k, pqd + NJ * k, pqdd + NJ * k,
@@ -302,16 +312,14 @@ static PyObject *weighted_derivatives(PyObject *self, PyObject *args) {
     if (!PyArg_ParseTuple(args, "w*y*y*y*y*y*y*d", &out, &q, &qd, &qdd, &weights, &geom, &axes, &eps)) {
         return NULL;
     }
-    Py_ssize_t n = q.len / (Py_ssize_t)(sizeof(double) * NJ);
-    int ok = q.len == qd.len && q.len == qdd.len
+    Py_ssize_t n;
+    int identity[NJ];
+    int ok = chain_inputs(&q, &qd, &qdd, &geom, &axes, &n, identity)
           && weights.len == n * (Py_ssize_t)(sizeof(double) * NJ * NP)
-          && out.len == n * (Py_ssize_t)(sizeof(double) * 3 * NJ)
-          && geom.len == (Py_ssize_t)(sizeof(double) * (12 * NJ + 3)) && axes.len == NJ;
+          && out.len == n * (Py_ssize_t)(sizeof(double) * 3 * NJ);
     if (ok) {
         const double *pq = q.buf, *pqd = qd.buf, *pqdd = qdd.buf, *pw = weights.buf;
         double *po = out.buf;
-        int identity[NJ];
-        for (int i = 0; i < NJ; i++) identity[i] = is_identity((const double *)geom.buf + 12 * i + 3);
         Py_BEGIN_ALLOW_THREADS
         for (Py_ssize_t k = 0; k < n; k++) {
             derive_sample(geom.buf, axes.buf, identity, eps, pq + NJ * k, pqd + NJ * k, pqdd + NJ * k,
