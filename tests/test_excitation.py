@@ -446,8 +446,17 @@ def test_polish_continues_the_best_on_the_finer_criterion_grid(ur5):
     assert polished.coarse_criteria.n_samples == 90
     assert plain.convergence.iterations < polished.convergence.iterations <= 2 * settings.iterations
     assert check_trajectory(ur5, polished.trajectory, limits=polished.limits).ok
-    with pytest.raises(ValueError, match="polish"):
-        ExcitationSettings(polish=-1)
+    # the polish has its own tolerance (tighter than the search's by default) and iteration cap
+    assert settings.polish_tolerance < settings.tolerance
+    loose = optimize_excitation(ur5, replace(settings, polish=1, polish_samples=90, polish_tolerance=5e-2))
+    tight = optimize_excitation(ur5, replace(settings, polish=1, polish_samples=90, polish_tolerance=0.0))
+    assert loose.convergence.iterations < tight.convergence.iterations
+    assert min(tight.history) <= min(loose.history)
+    capped = optimize_excitation(ur5, replace(settings, polish=1, polish_samples=90, polish_iterations=3))
+    assert plain.convergence.iterations < capped.convergence.iterations <= plain.convergence.iterations + 3
+    for bad in ({"polish": -1}, {"polish_iterations": -1}, {"polish_tolerance": -1.0}):
+        with pytest.raises(ValueError, match="polish"):
+            ExcitationSettings(**bad)
     with pytest.raises(ValueError, match="polish"):
         ExcitationSettings(polish_samples=0)
 

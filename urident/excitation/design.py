@@ -123,6 +123,7 @@ class ExcitationDesign:
         out = {"criterion": s.criterion, "reduced": s.reduced, "seed": s.seed, "starts": s.starts,
                "screen_iterations": s.screen_iterations, "finalists": s.finalists, "iterations": s.iterations,
                "tolerance": s.tolerance, "hops": s.hops, "hop_rounds": s.hop_rounds, "polish": s.polish,
+               "polish_iterations": s.polish_iterations, "polish_tolerance": s.polish_tolerance,
                "criterion_samples": s.samples("criterion"), "polish_samples": s.samples("polish"),
                "collision_samples": s.samples("collision"), "limit_samples": s.samples("limits"), "periods": s.periods,
                "select": s.select,

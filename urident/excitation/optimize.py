@@ -17,7 +17,9 @@ Method (measured against L-BFGS-B with forward differences and a smooth bound of
   converged point a restart reached a lower basin far more often than a fresh start did
   (docs/excitation.md). None for a single start (``starts=1``: that start alone, quick). The best
   of all is polished: the best ``polish`` continue on the criterion on ``polish_samples`` samples
-  (the search's ``criterion_samples`` are fewer: cheaper, but its optimum is 1–2.5 % worse there).
+  (the search's ``criterion_samples`` are fewer: cheaper, but its optimum is 1–2.5 % worse there),
+  to ``polish_tolerance`` (four times tighter than the search's: a restart only has to rank its
+  basin, the polish ends the design) or ``polish_iterations``.
   The finalists are ranked as written (``select='finalised'``): each made collision-free at the
   controller rate without the search's buffer, then scored on the criterion plus the torque penalty;
   ``'objective'`` ranks them by the search's penalised objective, whose collision part includes the
@@ -62,7 +64,6 @@ MAX_WORKERS = 2            # the starts gain nothing from more processes than th
 _GRADIENT_TOL = 1e-8       # BFGS's own stop (|∇|∞); the window rule usually ends a start first
 _REPORT_EVERY = 10         # iterations between a worker's progress reports
 _HOP_SEED_OFFSET = 1000    # the perturbed restarts' generator: seed + this
-_POLISH_ITERATIONS = 300   # at most this many BFGS iterations of a polish on the finer criterion grid
 
 
 @dataclass(frozen=True)
@@ -212,8 +213,9 @@ def _problems(spec, settings, base, payload) -> dict[bool, ExcitationProblem]:
     """The search's problem (False) and the polish's on ``polish_samples`` (True)."""
     problem = ExcitationProblem(spec, settings, base, payload)
     fine = problem
-    if settings.polish and settings.samples("polish") != settings.samples("criterion"):
-        fine = ExcitationProblem(spec, replace(settings, criterion_samples=settings.samples("polish")), base, payload)
+    if settings.polish:  # its own grid and tolerance
+        fine = ExcitationProblem(spec, replace(settings, criterion_samples=settings.samples("polish"),
+                                               tolerance=settings.polish_tolerance), base, payload)
     return {False: problem, True: fine}
 
 
@@ -339,11 +341,11 @@ def _optimize(spec: RobotSpec, settings: ExcitationSettings | None, progress: Ca
                 finalists, starts = finalists + hops, starts + hops
                 best = min([best] + hops, key=lambda s: s.objective)
             if settings.polish and (deadline is None or time.monotonic() < deadline):
-                # at most min(_POLISH_ITERATIONS, iterations) more, on the finer grid
+                # at most min(polish_iterations, iterations) more, on the finer grid, to polish_tolerance
                 chosen = sorted(finalists, key=lambda s: s.objective)[: settings.polish]
                 ended = {s.key: s for s in runner.run(
                     [replace(s, history=(), reason="", done=False, prior_iterations=s.prior_iterations + len(s.history))
-                     for s in chosen], min(_POLISH_ITERATIONS, settings.iterations), deadline, polish=True)}
+                     for s in chosen], min(settings.polish_iterations, settings.iterations), deadline, polish=True)}
                 say(f"the best {len(chosen)} polished on {settings.samples('polish')} criterion samples: "
                     f"{', '.join(_show(settings, s.objective) for s in ended.values())}")
                 finalists = [ended.get(s.key, s) for s in finalists]

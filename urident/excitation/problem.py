@@ -78,7 +78,9 @@ class ExcitationSettings:
     select: str = "finalised"             # the finalists ranked as written (collision-free, no buffer);
                                           # 'objective': by the search's penalised objective
     polish: int = 2                       # then the best this many continue on the criterion on
-    polish_samples: int | None = None     # this many samples (the search's is coarser: cheaper)
+    polish_samples: int | None = None     # this many samples (the search's is coarser: cheaper), for at
+    polish_iterations: int = 600          # most this many iterations or until the objective falls less
+    polish_tolerance: float = 5e-4        # than this over ``window`` (tighter: a restart ranks basins, the polish ends)
     budget_s: float | None = None         # wall-time cap of the search [s]; None: until converged
     workers: int | None = None            # processes running starts (0: none); None: one per core, at most 2
     # The grids' sample counts; None: SAMPLES_PER_CYCLE per cycle of the highest harmonic (60, 100,
@@ -109,6 +111,9 @@ class ExcitationSettings:
         if self.polish < 0 or self.samples("polish") < 1:
             raise ValueError(f"polish must not be negative and polish_samples positive, not {self.polish} and "
                              f"{self.polish_samples}")
+        if self.polish_iterations < 0 or not self.polish_tolerance >= 0:
+            raise ValueError(f"polish_iterations and polish_tolerance must not be negative, not "
+                             f"{self.polish_iterations} and {self.polish_tolerance}")
         if min(self.hops, self.hop_rounds, self.hop_evaluations) < 0 or not self.hop_scale >= 0:
             raise ValueError(f"hops, hop_rounds, hop_evaluations and hop_scale must not be negative, not "
                              f"{self.hops}, {self.hop_rounds}, {self.hop_evaluations} and {self.hop_scale}")
