@@ -46,8 +46,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "until converged, then up to 12 rounds of 2 perturbed restarts from the best)")
     p.add_argument("--iterations", type=options.int_range(1, 100000), default=None,
                    help="BFGS iterations per start at most (default 1000; a start ends earlier once "
-                        "cond fell less than 0.1 %% over its last 50 iterations), and as many (at most 300) "
-                        "more for the best 2 on a finer criterion grid")
+                        "cond fell less than 0.1 %% over its last 50 iterations), and as many (at most 600) "
+                        "more for the best 2 on a finer criterion grid, until cond falls less than 0.025 %% over 50")
     p.add_argument("--budget", type=options.positive_float, default=None, metavar="SECONDS",
                    help="stop the search after this wall time [s] and keep the best point so far (the "
                         "dense checks after it add a few seconds); the output says how far from converged "

@@ -215,7 +215,7 @@ def _problems(spec, settings, base, payload) -> dict[bool, ExcitationProblem]:
     fine = problem
     if settings.polish:  # its own grid and tolerance
         fine = ExcitationProblem(spec, replace(settings, criterion_samples=settings.samples("polish"),
-                                               tolerance=settings.polish_tolerance), base, payload)
+                                               tolerance=settings.polish_tolerance), problem.base, payload)
     return {False: problem, True: fine}
 
 
