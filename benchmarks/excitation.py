@@ -54,7 +54,8 @@ def run(spec, settings, base, label: str) -> dict:
     return {"cond": round(result.coarse_criteria.cond_theta, 3), "cond_dense": round(result.criteria.cond_theta, 3),
             "wall_s": round(wall, 2), "cpu_s": round(result.cpu_s, 2), "load_average": round(os.getloadavg()[0], 2),
             "check_ok": report.ok, "min_distance_m": round(report.min_distance_m, 4),
-            "stop_reason": c.reason, "iterations": c.iterations, "evaluations": result.evaluations}
+            "stop_reason": c.reason, "iterations": c.iterations, "evaluations": result.evaluations,
+            "search": c.describe(settings.criterion)}
 
 
 def main() -> None:
@@ -98,7 +99,7 @@ def bench(spec, model: str, args) -> dict:
     print(f"{spec.name} {model} model ({base.n_base} base parameters), L = 5, 20 s, seed {args.seed}: default "
           f"{d['wall_s']:.1f} s wall ({d['cpu_s']:.1f} s CPU; load average {d['load_average']:.1f} on "
           f"{os.cpu_count()} cores), cond(Θ̄_B) = {d['cond']:.4g} ({d['cond_dense']:.4g} at "
-          f"{spec.controller_rate_hz:g} Hz), {d['stop_reason']} after {d['iterations']} iterations, "
+          f"{spec.controller_rate_hz:g} Hz), {d['search']}, "
           f"dense check ok: {d['check_ok']}")
     if not args.no_long:
         entry["long"] = long = run(spec, ExcitationSettings(**{**settings.__dict__, **LONG}), base,
