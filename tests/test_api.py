@@ -220,17 +220,32 @@ def test_design_excitation_is_what_the_command_writes(tmp_path, capsys):
         ur.design_excitation("ur5", margins={"velocity_fraction": 1.5})
 
 
-def test_the_excite_help_states_the_librarys_payload_defaults():
-    """The command's help carries --for-payload's defaults as literals (its parser is built without
-    numpy); they are the library's."""
+def test_the_excite_help_states_the_librarys_defaults():
+    """The command's help carries the search's, the margins' and --for-payload's defaults as literals
+    (its parser is built without numpy); they are the library's, so a changed default changes the help."""
     from urident.cli import cmd_excite
-    from urident.excitation import design
+    from urident.excitation import Margins, design
+    from urident.excitation.problem import ARM_JOINT_FRACTION, PAPER_Q0, ExcitationSettings
 
     for name in ("PAYLOAD_PERIODS", "PAYLOAD_DURATION_S", "PAYLOAD_VELOCITY_FRACTION"):
         assert getattr(cmd_excite, name) == getattr(design, name)
+    assert cmd_excite.PAYLOAD_VELOCITY_CAP_RAD_S == round(design.payload_velocity_cap(), 2)
+    assert cmd_excite.ARM_JOINT_FRACTION == ARM_JOINT_FRACTION
+    settings, margins = ExcitationSettings(), Margins()
+    assert cmd_excite.SEARCH == {name: getattr(settings, name) for name in cmd_excite.SEARCH}
+    assert cmd_excite.MARGINS == {name: getattr(margins, name) for name in cmd_excite.MARGINS}
+    assert set(cmd_excite.MARGINS) == set(vars(margins))
+    assert PAPER_Q0 == (0.0, -np.pi / 2, 0.0, 0.0, 0.0, 0.0)  # the --q0 help's "0,-pi/2,0,0,0,0"
     r = subprocess.run([sys.executable, "-m", "urident", "excite", "--help"], capture_output=True, text=True,
                        cwd=REPO, check=True)
-    assert f"within {design.payload_velocity_cap():.2f} rad/s" in " ".join(r.stdout.split())
+    text = " ".join(r.stdout.split())
+    assert f"within {design.payload_velocity_cap():.2f} rad/s" in text
+    assert (f"(default {settings.starts}: each runs {settings.screen_iterations} BFGS iterations, the best "
+            f"{settings.finalists} continue until converged, then up to {settings.hop_rounds} rounds of "
+            f"{settings.hops} perturbed restarts") in text
+    assert f"at most {settings.polish_iterations})" in text and f"(default {settings.iterations};" in text
+    assert f"less than {100 * settings.tolerance / 2:g} % over its last {settings.window} iterations" in text
+    assert f"(default {margins.torque_fraction:g})" in text and f"(default {margins.clearance_m:g})" in text
 
 
 def test_max_velocity_bounds_every_joint_and_is_recorded(tmp_path, capsys):

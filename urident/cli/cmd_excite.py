@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 
 from urident.cli import options
@@ -14,6 +15,21 @@ MAX_DURATION_S = 3600.0
 PAYLOAD_PERIODS = 2
 PAYLOAD_DURATION_S = 30.0
 PAYLOAD_VELOCITY_FRACTION = 0.7
+PAYLOAD_VELOCITY_CAP_RAD_S = 2.25   # design.payload_velocity_cap(), to two decimals
+ARM_JOINT_FRACTION = 0.2
+# The search's and the margins' defaults, written into the help: ExcitationSettings and Margins hold
+# them, and the same test keeps these equal.
+SEARCH = {"duration_s": 20.0, "periods": 1, "starts": 8, "screen_iterations": 60, "finalists": 2,
+          "hops": 2, "hop_rounds": 12, "iterations": 1000, "tolerance": 2e-3, "window": 50, "polish": 2,
+          "polish_iterations": 600, "polish_tolerance": 5e-4}
+MARGINS = {"velocity_fraction": 0.8, "acceleration_fraction": 1.0, "torque_fraction": 0.9,
+           "position_margin_rad": 0.2, "position_window_rad": math.pi, "clearance_m": 0.05,
+           "floor_height_m": 0.0}
+
+
+def _cond_percent(tolerance: float) -> str:
+    """A fall of the objective (log cond Λ = 2 log cond Θ̄) as cond Θ̄'s percentage, for the help."""
+    return f"{100 * tolerance / 2:g} %%"
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -29,10 +45,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--harmonics", type=options.int_range(2, MAX_HARMONICS), default=5,
                    help=f"order L of the series, 2-{MAX_HARMONICS} (default 5)")
     p.add_argument("--duration", type=options.float_range(0, MAX_DURATION_S), default=None,
-                   help=f"duration [s], at most {MAX_DURATION_S:g} (default 20; {PAYLOAD_DURATION_S:g} "
+                   help=f"duration [s], at most {MAX_DURATION_S:g} (default {SEARCH['duration_s']:g}; {PAYLOAD_DURATION_S:g} "
                         "with --for-payload)")
     p.add_argument("--periods", type=options.int_range(1, 1000), default=None,
-                   help="whole base periods in the duration; ω = 2π·periods/duration (default 1; "
+                   help="whole base periods in the duration; ω = 2π·periods/duration "
+                        f"(default {SEARCH['periods']}; "
                         f"{PAYLOAD_PERIODS} with --for-payload)")
     p.add_argument("--seed", type=options.seed, default=0, help="random seed (default 0)")
     p.add_argument("--criterion", choices=("cond", "logdet"), default="cond",
@@ -42,40 +59,46 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--q0", type=options.joint_vector, default=None,
                    help="offsets q_i,0 [rad] as six comma-separated numbers (default: 0,-pi/2,0,0,0,0)")
     p.add_argument("--starts", type=options.int_range(1, 1000), default=None,
-                   help="optimiser starts (default 8: each runs 60 BFGS iterations, the best 2 continue "
-                        "until converged, then up to 12 rounds of 2 perturbed restarts from the best)")
+                   help=f"optimiser starts (default {SEARCH['starts']}: each runs {SEARCH['screen_iterations']} "
+                        f"BFGS iterations, the best {SEARCH['finalists']} continue until converged, then up to "
+                        f"{SEARCH['hop_rounds']} rounds of {SEARCH['hops']} perturbed restarts from the best)")
     p.add_argument("--iterations", type=options.int_range(1, 100000), default=None,
-                   help="BFGS iterations per start at most (default 1000; a start ends earlier once "
-                        "cond fell less than 0.1 %% over its last 50 iterations), and as many (at most 600) "
-                        "more for the best 2 on a finer criterion grid, until cond falls less than 0.025 %% over 50")
+                   help=f"BFGS iterations per start at most (default {SEARCH['iterations']}; a start ends "
+                        f"earlier once cond fell less than {_cond_percent(SEARCH['tolerance'])} over its last "
+                        f"{SEARCH['window']} iterations), and as many (at most {SEARCH['polish_iterations']}) "
+                        f"more for the best {SEARCH['polish']} on a finer criterion grid, until cond falls less "
+                        f"than {_cond_percent(SEARCH['polish_tolerance'])} over {SEARCH['window']}")
     p.add_argument("--budget", type=options.positive_float, default=None, metavar="SECONDS",
                    help="stop the search after this wall time [s] and keep the best point so far (the "
                         "dense checks after it add a few seconds); the output says how far from converged "
                         "it stopped (default: until converged)")
     p.add_argument("--velocity-fraction", type=options.fraction, default=None,
-                   help=f"|q̇| ≤ fraction · robot limit (default 0.8; {PAYLOAD_VELOCITY_FRACTION} with "
-                        "--for-payload, which also keeps |q̇| within 2.25 rad/s: servoJ's lag inside "
+                   help=f"|q̇| ≤ fraction · robot limit (default {MARGINS['velocity_fraction']:g}; "
+                        f"{PAYLOAD_VELOCITY_FRACTION} with --for-payload, which also keeps |q̇| within "
+                        f"{PAYLOAD_VELOCITY_CAP_RAD_S:.2f} rad/s: servoJ's lag inside "
                         "the session's tracking monitor)")
     p.add_argument("--max-velocity", type=options.positive_float, default=None, metavar="RAD_S",
                    help="also keep every joint's |q̇| within this [rad/s] (e.g. 2.2 on a fast wrist: servoJ's "
                         "0.1 s lag stays inside the session's 0.25 rad tracking monitor; default none, "
-                        "2.25 with --for-payload)")
+                        f"{PAYLOAD_VELOCITY_CAP_RAD_S:.2f} with --for-payload)")
     p.add_argument("--acceleration-fraction", type=options.fraction, default=None,
-                   help="|q̈| ≤ fraction · robot limit (default 1.0)")
+                   help=f"|q̈| ≤ fraction · robot limit (default {MARGINS['acceleration_fraction']:.1f})")
     p.add_argument("--torque-fraction", type=options.fraction, default=None,
-                   help="nominal |τ| ≤ fraction · robot limit (default 0.9)")
+                   help=f"nominal |τ| ≤ fraction · robot limit (default {MARGINS['torque_fraction']:g})")
     p.add_argument("--position-margin", type=options.nonnegative_float, default=None,
-                   help="distance kept from the joint limits [rad] (default 0.2)")
+                   help=f"distance kept from the joint limits [rad] (default {MARGINS['position_margin_rad']:g})")
     p.add_argument("--position-window", type=options.positive_float, default=None,
                    help="keep every joint within ±window [rad] (default pi: one turn)")
     p.add_argument("--clearance", type=options.nonnegative_float, default=None,
-                   help="minimum capsule distance to the floor and between links [m] (default 0.05)")
+                   help="minimum capsule distance to the floor and between links [m] "
+                        f"(default {MARGINS['clearance_m']:g})")
     p.add_argument("--floor-height", type=options.finite_float, default=None,
-                   help="height of the floor / mount plane in the base frame [m] (default 0)")
+                   help="height of the floor / mount plane in the base frame [m] "
+                        f"(default {MARGINS['floor_height_m']:g})")
     p.add_argument("--for-payload", action="store_true",
                    help="design a payload excitation: minimise the condition number of the ten "
                         "payload columns (mass, centre of mass, inertia as seen through the flange, "
-                        "the arm's parameters known), joints 1-3 within 20 %% of their velocity and "
+                        f"the arm's parameters known), joints 1-3 within {100 * ARM_JOINT_FRACTION:g} %% of their velocity and "
                         "acceleration limits (wrist-dominated); needs the tool's size "
                         "(--tool-capsule or a --payload file with a capsule)")
     options.add_checked_payload_arguments(p, "the torque checks include it (with and without it) and "
