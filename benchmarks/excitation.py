@@ -3,13 +3,18 @@ for the paper's reduced model and the full one: the default settings (time, cond
 run of the same optimiser with ten times its evaluations (its cond: the reference the default must come
 within 5 % of), and against random trajectories that satisfy the same constraints.
 
+The default starts from random candidates and the arm's shipped design (urident.excitation.library:
+seed 0 of the long run, made once); "the search alone" is the default without the shipped design, and
+the long run starts from random candidates only, so on a seed other than 0 it is a reference the
+shipped designs did not come from (on seed 0 the long run repeats the search that made them).
+
 Prints per model the default's wall and CPU time (this process and its worker processes), its
 cond(Θ̄_B) on the optimiser's criterion grid (columns scaled by reference RMS, see
 urident.excitation.criteria; cond(Λ) is its square) and at the controller rate, how its search ended,
-the long run's cond and the ratio (of the conds at the controller rate: the two runs' criterion
-grids differ), and the median cond(Θ̄_B) of random feasible trajectories; then one summary line per
-robot and model, and last one JSON object. The machine is shared: the wall time depends on the load (printed),
-the CPU time much less.
+the search alone's, the long run's cond and the ratios (of the conds at the controller rate: the runs'
+criterion grids differ), and the median cond(Θ̄_B) of random feasible trajectories; then one summary
+line per robot and model, and last one JSON object. The machine is shared: the wall time depends on the
+load (printed), the CPU time much less.
 
     python benchmarks/excitation.py [--robot ur5[,ur10e,...]] [--seed 1] [--models reduced,full]
                                     [--random 1000] [--no-long]
@@ -33,16 +38,11 @@ from dataclasses import replace  # noqa: E402
 import numpy as np  # noqa: E402
 
 from urident.excitation.check import check_trajectory  # noqa: E402
+from urident.excitation.library import LONG_SEARCH as LONG  # noqa: E402
 from urident.excitation.optimize import (ExcitationSettings, optimize_excitation,  # noqa: E402
                                          random_feasible_criteria)
 from urident.model import load_robot  # noqa: E402
 from urident.model.base import base_parameters  # noqa: E402
-
-# The long reference: the default's search with ten times its evaluations (up to 120 restart rounds
-# while below 240,000) from four times the candidates, twice the starts and finalists; it must cost
-# far more than the default to say how close the default comes (docs/excitation.md, twelfth pass).
-LONG = dict(candidates=256, starts=16, finalists=4, hop_rounds=120, hop_evaluations=240_000)
-
 
 def run(spec, settings, base, label: str) -> dict:
     start = time.perf_counter()
@@ -55,7 +55,8 @@ def run(spec, settings, base, label: str) -> dict:
             "wall_s": round(wall, 2), "cpu_s": round(result.cpu_s, 2), "load_average": round(os.getloadavg()[0], 2),
             "check_ok": report.ok, "min_distance_m": round(report.min_distance_m, 4),
             "stop_reason": c.reason, "iterations": c.iterations, "evaluations": result.evaluations,
-            "search": c.describe(settings.criterion)}
+            "search": c.describe(settings.criterion), "shipped_designs": result.shipped_designs,
+            "from_shipped": result.from_shipped}
 
 
 def main() -> None:
@@ -81,8 +82,10 @@ def main() -> None:
             d = entry["default"]
             line = (f"{spec.name} {model}: default cond(Θ̄_B) {d['cond_dense']:.4g} in {d['wall_s']:.1f} s wall, "
                     f"{d['cpu_s']:.1f} s CPU")
+            line += f"; the search alone {entry['alone']['cond_dense']:.4g}"
             if "long" in entry:
-                line += f"; long run {entry['long']['cond_dense']:.4g}; default / long = {entry['ratio']:.3f}"
+                line += (f"; long run {entry['long']['cond_dense']:.4g}; default / long = {entry['ratio']:.3f}, "
+                         f"the search alone / long = {entry['ratio_alone']:.3f}")
             summary.append(line)
     print("summary (cond at the controller rate):")
     for line in summary:
@@ -100,17 +103,23 @@ def bench(spec, model: str, args) -> dict:
           f"{d['wall_s']:.1f} s wall ({d['cpu_s']:.1f} s CPU; load average {d['load_average']:.1f} on "
           f"{os.cpu_count()} cores), cond(Θ̄_B) = {d['cond']:.4g} ({d['cond_dense']:.4g} at "
           f"{spec.controller_rate_hz:g} Hz), {d['search']}, "
-          f"dense check ok: {d['check_ok']}")
+          f"{d['shipped_designs']} shipped designs among the candidates"
+          + (", the result began at one" if d["from_shipped"] else "") + f", dense check ok: {d['check_ok']}")
+    entry["alone"] = alone = run(spec, replace(settings, library=False), base, f"{spec.name} {model} alone")
+    print(f"  the search alone (random candidates only, no shipped design): cond(Θ̄_B) = {alone['cond']:.4g} "
+          f"({alone['cond_dense']:.4g} at {spec.controller_rate_hz:g} Hz), {alone['wall_s']:.1f} s wall "
+          f"({alone['cpu_s']:.1f} s CPU), {alone['search']}")
     if not args.no_long:
-        entry["long"] = long = run(spec, ExcitationSettings(**{**settings.__dict__, **LONG}), base,
-                                   f"{spec.name} {model} long")
+        entry["long"] = long = run(spec, replace(settings, library=False, **LONG), base, f"{spec.name} {model} long")
         entry["ratio"] = round(d["cond_dense"] / long["cond_dense"], 4)
+        entry["ratio_alone"] = round(alone["cond_dense"] / long["cond_dense"], 4)
         print(f"  long run ({LONG['candidates']} candidates, {LONG['starts']} starts, {LONG['finalists']} continued, "
               f"up to {LONG['hop_rounds']} restart rounds below {LONG['hop_evaluations']:,} evaluations): "
               f"cond(Θ̄_B) = {long['cond']:.4g} ({long['cond_dense']:.4g} at "
               f"{spec.controller_rate_hz:g} Hz), {long['evaluations']:,} evaluations against the default's "
               f"{d['evaluations']:,}, {long['wall_s']:.1f} s wall ({long['cpu_s']:.1f} s CPU); "
-              f"default / long = {entry['ratio']:.3f} (at {spec.controller_rate_hz:g} Hz)")
+              f"default / long = {entry['ratio']:.3f}, the search alone / long = {entry['ratio_alone']:.3f} "
+              f"(at {spec.controller_rate_hz:g} Hz)")
     if args.random:
         start = time.perf_counter()
         conds = random_feasible_criteria(spec, replace(settings, criterion_samples=100), args.random,

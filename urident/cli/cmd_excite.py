@@ -68,6 +68,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         f"{SEARCH['window']} iterations), and as many (at most {SEARCH['polish_iterations']}) "
                         f"more for the best {SEARCH['polish']} on a finer criterion grid, until cond falls less "
                         f"than {_cond_percent(SEARCH['polish_tolerance'])} over {SEARCH['window']}")
+    p.add_argument("--no-library", dest="library", action="store_false",
+                   help="start from random candidates only, not also from urident's shipped design of the "
+                        "arm for this order (urident/excitation/designs.yaml: the best a ten times longer "
+                        "search found at the default settings)")
     p.add_argument("--budget", type=options.positive_float, default=None, metavar="SECONDS",
                    help="stop the search after this wall time [s] and keep the best point so far (the "
                         "dense checks after it add a few seconds); the output says how far from converged "
@@ -130,7 +134,7 @@ def run(args: argparse.Namespace) -> int:
                         starts=args.starts, iterations=args.iterations, budget_s=args.budget, margins=margins,
                         for_payload=args.for_payload, payload=payload, tool=args.tool_capsule,
                         payload_source=payload_source, tool_source=tool_source,
-                        max_velocity_rad_s=args.max_velocity, progress=progress)
+                        max_velocity_rad_s=args.max_velocity, library=args.library, progress=progress)
     except HarmonicRateError as exc:
         raise ConfigError(exc.message("--")) from None
     except ToolSizeError:

@@ -99,6 +99,8 @@ class ExcitationDesign:
     payload: Any = None                 # the load the torque checks included (a Payload), or None
     payload_source: str = ""            # where the payload and the tool came from (the file's header)
     tool_source: str = ""
+    shipped_designs: int = 0            # shipped designs among the search's candidates (excitation.library)
+    from_shipped: bool = False          # the design began at one of them
 
     @property
     def cond(self) -> float:
@@ -126,7 +128,7 @@ class ExcitationDesign:
                "polish_iterations": s.polish_iterations, "polish_tolerance": s.polish_tolerance,
                "criterion_samples": s.samples("criterion"), "polish_samples": s.samples("polish"),
                "collision_samples": s.samples("collision"), "limit_samples": s.samples("limits"), "periods": s.periods,
-               "select": s.select,
+               "select": s.select, "shipped_designs": self.shipped_designs, "from_shipped": self.from_shipped,
                "wall_s": round(self.wall_s, 3), "cpu_s": round(self.cpu_s, 3), "evaluations": self.evaluations,
                **self.convergence.as_dict()}
         if s.budget_s is not None:
@@ -199,11 +201,13 @@ def design(robot: str | Path | RobotSpec, *, harmonics: int = 5, duration_s: flo
            q0=None, starts: int | None = None, iterations: int | None = None, budget_s: float | None = None,
            margins: Mapping[str, float] | None = None, for_payload: bool = False, payload=None,
            tool: ToolCapsule | None = None, payload_source: str = "payload", tool_source: str | None = None,
-           max_velocity_rad_s: float | None = None, progress: Callable[[str], None] | None = None) -> ExcitationDesign:
+           max_velocity_rad_s: float | None = None, library: bool = True,
+           progress: Callable[[str], None] | None = None) -> ExcitationDesign:
     """Optimise, check and return an excitation design (see :func:`urident.design_excitation`;
     ``payload`` is a :class:`urident.ident.payload.Payload`, ``*_source`` say where the payload and
     tool came from in the file's header; ``max_velocity_rad_s`` bounds every joint's |q̇| besides the
-    margins', :func:`payload_velocity_cap` with ``for_payload``)."""
+    margins', :func:`payload_velocity_cap` with ``for_payload``; ``library``: the arm's shipped designs
+    join the search's candidates, :mod:`urident.excitation.library`)."""
     robot_file = None
     if isinstance(robot, RobotSpec):
         spec = robot
@@ -232,7 +236,7 @@ def design(robot: str | Path | RobotSpec, *, harmonics: int = 5, duration_s: flo
     try:
         settings = ExcitationSettings(harmonics=harmonics, duration_s=duration_s, periods=periods,
                                       criterion=criterion, reduced=reduced, seed=seed, margins=Margins(**overrides),
-                                      for_payload=for_payload,
+                                      for_payload=for_payload, library=library,
                                       max_velocity_rad_s=_velocity_cap(max_velocity_rad_s, for_payload))
         chosen = {"q0": None if q0 is None else tuple(q0), "starts": starts, "iterations": iterations,
                   "budget_s": budget_s}
@@ -247,7 +251,7 @@ def design(robot: str | Path | RobotSpec, *, harmonics: int = 5, duration_s: flo
     return ExcitationDesign(spec.name, result.trajectory, result.limits, result.settings, result.criteria,
                             result.convergence, report, result.wall_s, result.cpu_s, result.evaluations, spec,
                             robot_file, result.payload_cond, payload, payload_source if payload is not None else "",
-                            tool_source if tool is not None else "")
+                            tool_source if tool is not None else "", result.shipped_designs, result.from_shipped)
 
 
 def _same(loaded, trajectory: FourierTrajectory, limits: Limits) -> bool:

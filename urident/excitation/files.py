@@ -78,7 +78,7 @@ _OPT_KEYS = {"criterion", "reduced", "seed", "starts", "iterations", "criterion_
              "arm_joint_fraction", "max_velocity_rad_s", "screen_iterations", "finalists", "tolerance",
              "cpu_s", "budget_s", "converged", "stop_reason", "total_iterations", "gradient_norm",
              "last_window_improvement", "window", "hops", "hop_rounds", "polish", "polish_samples", "select",
-             "polish_iterations", "polish_tolerance"}
+             "polish_iterations", "polish_tolerance", "shipped_designs", "from_shipped"}
 _CRITERIA_KEYS = {"cond_theta", "cond_lambda", "logdet_lambda", "cond_theta_raw", "cond_theta_equilibrated", "n_samples",
                   "n_base", "rate_hz", "reduced", "payload_cond"}
 _CHECK_KEYS = {"rate_hz", "min_distance_m", "min_distance_pair", "collision_margin_m", "ok"}

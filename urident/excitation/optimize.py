@@ -3,8 +3,9 @@ base regressor over the Fourier coefficients, subject to joint, velocity, accele
 collision constraints (the problem and its exact gradient: :mod:`urident.excitation.problem`).
 
 Method (measured against L-BFGS-B with forward differences and a smooth bound of cond, README)
-* Starts: ``candidates`` random coefficient sets, scaled per joint onto the position, velocity
-  and acceleration limits and towards q0 until collision-free; the best ``starts`` of them.
+* Starts: ``candidates`` random coefficient sets and (``library``) the arm's shipped designs of this
+  order (:mod:`urident.excitation.library`), scaled per joint onto the position, velocity and
+  acceleration limits and towards q0 until collision-free; the best ``starts`` of them.
 * Each start runs BFGS (a dense quasi-Newton matrix: 6·2(L−1) variables) on the penalised
   objective with its exact gradient, ``screen_iterations`` at first; the best ``finalists``
   continue (their BFGS matrix kept) until converged: the objective fell by less than
@@ -50,6 +51,7 @@ from urident.blas import one_blas_thread
 from urident.excitation.constraints import Limits
 from urident.excitation.criteria import CriterionValues, evaluate_criteria
 from urident.excitation.fourier import FourierBasis, FourierTrajectory, sample_times
+from urident.excitation.library import starts_for
 from urident.excitation.problem import (ARM_JOINT_FRACTION, PAPER_Q0, PENALTY_WEIGHT, ExcitationProblem,
                                         ExcitationSettings)
 from urident.model.base import BaseParameters
@@ -116,6 +118,8 @@ class ExcitationResult:
     payload_cond: float | None = None   # for_payload: cond of the payload columns at the controller rate
     convergence: Convergence | None = None
     cpu_s: float = 0.0                  # CPU time of this process and the workers' starts [s]
+    shipped_designs: int = 0            # shipped designs among the candidates (excitation.library)
+    from_shipped: bool = False          # the result began at one of them
 
 
 @dataclass(frozen=True)
@@ -132,6 +136,7 @@ class _Start:
     cpu_s: float = 0.0                  # CPU time spent on it [s]
     done: bool = False                  # converged: not worth continuing
     prior_iterations: int = 0           # iterations before ``history`` began (on the coarser grid)
+    shipped: bool = False               # it began at a shipped design (or restarted from one that did)
 
     @property
     def objective(self) -> float:
@@ -300,11 +305,18 @@ def _optimize(spec: RobotSpec, settings: ExcitationSettings | None, progress: Ca
     rng = np.random.default_rng(settings.seed)
 
     candidates = problem.shrink_to_collision_free(problem.random_coefficients(rng, settings.candidates))
+    shipped = starts_for(spec.name, settings.harmonics) if settings.library and not settings.for_payload else ()
+    # a design is written at the clearance itself: shrunk only where it is inside it (other margins)
+    shipped = (problem.shrink_to_collision_free(problem.project(shipped), buffer=False) if len(shipped)
+               else np.empty((0, *candidates.shape[1:])))
+    candidates = np.concatenate([shipped, candidates])
     crit, coll, torque = problem.objective(candidates)
     scores = crit + PENALTY_WEIGHT * (coll + torque)
     order = np.argsort(scores, kind="stable")[: settings.starts]
-    say(f"{settings.candidates} random feasible candidates: best criterion {_show(settings, crit[order[0]])}")
-    starts = [_Start(k, candidates[c]) for k, c in enumerate(order)]
+    say(f"{settings.candidates} random feasible candidates"
+        + (f" and {len(shipped)} shipped designs (best {_show(settings, crit[:len(shipped)].min())})"
+           if len(shipped) else "") + f": best criterion {_show(settings, crit[order[0]])}")
+    starts = [_Start(k, candidates[c], shipped=bool(c < len(shipped))) for k, c in enumerate(order)]
     workers = settings.workers
     if workers is None:  # one start: not worth a process's start-up (≈ 2 s)
         workers = min(MAX_WORKERS, os.cpu_count() or 1) if len(starts) > 1 else 0
@@ -381,13 +393,15 @@ def _optimize(spec: RobotSpec, settings: ExcitationSettings | None, progress: Ca
 
         payload_cond = payload_condition(spec, *trajectory.evaluate(t))
     wall = time.perf_counter() - start_time
-    say(f"done in {wall:.1f} s: cond(Θ̄_B) = {dense.cond_theta:.4g} at {spec.controller_rate_hz:g} Hz, "
+    say(f"done in {wall:.1f} s: cond(Θ̄_B) = {dense.cond_theta:.4g} at {spec.controller_rate_hz:g} Hz"
+        + (" (from a shipped design)" if best.shipped else "") + ", "
         + (f"payload columns cond {payload_cond:.4g}, " if payload_cond is not None else "")
         + f"min distance {min_distance:.4f} m")
     return ExcitationResult(trajectory, dense, coarse, min_distance, wall,
                             sum(s.evaluations for s in starts), settings, problem.file_limits,
                             tuple(s.objective for s in starts), payload_cond, convergence,
-                            time.process_time() - cpu_start + (sum(s.cpu_s for s in starts) if workers else 0.0))
+                            time.process_time() - cpu_start + (sum(s.cpu_s for s in starts) if workers else 0.0),
+                            len(shipped), best.shipped)
 
 
 def _hops(problem: ExcitationProblem, settings: ExcitationSettings, best: _Start, first_key: int,
@@ -396,7 +410,7 @@ def _hops(problem: ExcitationProblem, settings: ExcitationSettings, best: _Start
     then projected onto the limits and shrunk until collision-free."""
     x = best.x * (1.0 + settings.hop_scale * rng.standard_normal((settings.hops, *best.x.shape)))
     x = problem.shrink_to_collision_free(problem.project(x))
-    return [_Start(first_key + i, x[i]) for i in range(settings.hops)]
+    return [_Start(first_key + i, x[i], shipped=best.shipped) for i in range(settings.hops)]
 
 
 def _convergence(settings: ExcitationSettings, start: _Start) -> Convergence:

@@ -64,7 +64,8 @@ class ExcitationSettings:
     criterion: str = "cond"               # 'cond' (min cond Λ) or 'logdet' (max log det Λ)
     reduced: bool = False                 # the paper's reduced (33) or the full (52) base parameters
     seed: int = 0
-    candidates: int = 64                  # random feasible points scored before optimising
+    candidates: int = 64                  # random feasible points scored before optimising, and
+    library: bool = True                  # the arm's shipped designs of this order (excitation.library)
     starts: int = 8                       # BFGS runs from the best candidates, screened ...
     screen_iterations: int = 60           # ... for this many iterations each, then
     finalists: int = 2                    # the best of them continued until converged
@@ -233,11 +234,13 @@ class ExcitationProblem:
         collision_pen = np.sum((short / COLLISION_SCALE_M) ** 2, axis=(1, 2)) / len(self.basis_collision.t)
         return crit, collision_pen, torque_pen
 
-    def collision_shortfall(self, x: np.ndarray) -> np.ndarray:
-        """(B, N, P) how far each checked pair is inside its required distance + buffer."""
+    def collision_shortfall(self, x: np.ndarray, buffer: bool = True) -> np.ndarray:
+        """(B, N, P) how far each checked pair is inside its required distance + buffer (``buffer``
+        False: the required distance alone)."""
         dq = self.basis_collision.evaluate(x)[0]
         d = self.capsules.distances(self.spec, (dq + self.q0).reshape(-1, 6))[:, self.checked]
-        return np.maximum(self.required - d, 0.0).reshape(x.shape[0], -1, d.shape[1])
+        required = self.required if buffer else self.required - self.settings.collision_buffer_m
+        return np.maximum(required - d, 0.0).reshape(x.shape[0], -1, d.shape[1])
 
     def kinematic_penalty(self, x: np.ndarray) -> np.ndarray:
         """(B,) mean squared relative excess over the position, velocity and acceleration limits
@@ -374,15 +377,17 @@ class ExcitationProblem:
         grad = np.einsum("rj,jrf->jf", g_q, basis.q[:, rows])
         return value, grad
 
-    def shrink_to_collision_free(self, x: np.ndarray, factor: float = 0.85, steps: int = 30) -> np.ndarray:
+    def shrink_to_collision_free(self, x: np.ndarray, factor: float = 0.85, steps: int = 30,
+                                 buffer: bool = True) -> np.ndarray:
         """Scale each coefficient set (B, 6, K) towards q0 by factor**k, the smallest k that clears
-        the collision grid (with buffer); q0 is collision-free, so small enough always works."""
+        the collision grid (with buffer, unless ``buffer`` is False); q0 is collision-free, so small
+        enough always works."""
         x = x.copy()
         pending = np.arange(x.shape[0])
         for _ in range(steps):
             if not len(pending):
                 break
-            bad = np.any(self.collision_shortfall(x[pending]) > 0, axis=(1, 2))
+            bad = np.any(self.collision_shortfall(x[pending], buffer) > 0, axis=(1, 2))
             pending = pending[bad]
             x[pending] *= factor
         return x

@@ -1,0 +1,110 @@
+"""The shipped excitation designs (urident.excitation.library): current for today's robot files,
+safe as written, and starts of the default search."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import yaml
+
+from urident.errors import ConfigError
+from urident.excitation import check_trajectory, load_trajectory
+from urident.excitation.constraints import Limits, Margins
+from urident.excitation.criteria import evaluate_criteria
+from urident.excitation.fourier import FourierTrajectory, base_frequency, sample_times
+from urident.excitation.library import LIBRARY_FILE, load_designs, starts_for
+from urident.excitation.optimize import ExcitationSettings, optimize_excitation
+from urident.model import available_robots, load_robot
+from urident.model.base import base_parameters
+
+
+def _trajectory(design) -> FourierTrajectory:
+    return FourierTrajectory.from_free(design.free, base_frequency(design.duration_s), np.array(design.q0),
+                                       design.duration_s)
+
+
+def test_every_arm_has_a_current_design_of_each_model_that_passes_the_checks():
+    """Each design's cond at the controller rate is the one recorded when it was made (a changed
+    robot file or criterion makes it stale: remake it, module doc), and it passes every dense check
+    with the default margins."""
+    designs = load_designs()
+    assert sorted((d.robot, d.model) for d in designs) == sorted(
+        (robot, model) for robot in available_robots() for model in ("reduced", "full"))
+    for d in designs:
+        spec = load_robot(d.robot)
+        trajectory = _trajectory(d)
+        t = sample_times(d.duration_s, spec.controller_rate_hz)
+        cond = evaluate_criteria(spec, base_parameters(spec, reduced=d.reduced), *trajectory.evaluate(t)).cond_theta
+        assert cond == pytest.approx(d.cond_theta, rel=1e-3), (d.robot, d.model)
+        report = check_trajectory(spec, trajectory, limits=Limits.from_robot(spec, Margins()),
+                                  collision_backend="numpy")
+        assert report.ok, (d.robot, d.model, report.violations[:3])
+
+
+def _short(**over) -> ExcitationSettings:
+    return ExcitationSettings(**{**dict(reduced=True, candidates=4, starts=2, finalists=1, screen_iterations=3,
+                                        iterations=6, hops=0, polish=0, workers=0), **over})
+
+
+def test_the_default_search_starts_from_the_arms_shipped_designs():
+    """With the library the best start is the arm's shipped design (no iterations: the result is that
+    design as written, its recorded cond) and the result says it began there; without it, a search
+    from random candidates ends far above."""
+    spec = load_robot("ur5e")
+    shipped = [d.cond_theta for d in load_designs() if d.robot == "ur5e" and d.reduced]
+    assert starts_for("ur5e", 5).shape == (2, 6, 8) and starts_for("ur5e", 4).shape == (0, 6, 6)
+    with_designs = optimize_excitation(spec, _short(screen_iterations=0, iterations=0))
+    assert with_designs.shipped_designs == 2 and with_designs.from_shipped
+    assert with_designs.criteria.cond_theta == pytest.approx(shipped[0], rel=1e-6)
+    assert check_trajectory(spec, with_designs.trajectory, limits=with_designs.limits).ok
+    alone = optimize_excitation(spec, _short(library=False))
+    assert alone.shipped_designs == 0 and not alone.from_shipped
+    assert alone.criteria.cond_theta > 1.5 * shipped[0]
+    # another order has no design: the same search as without the library
+    other = optimize_excitation(spec, _short(harmonics=4, duration_s=10.0))
+    assert other.shipped_designs == 0
+
+
+def test_a_shipped_design_is_projected_onto_the_users_tighter_limits():
+    """A design made for the default margins is a start under tighter ones too: projected, so the
+    search still ends inside them (a velocity fraction of 0.5 instead of 0.8)."""
+    spec = load_robot("ur10e")
+    margins = Margins(velocity_fraction=0.5)
+    result = optimize_excitation(spec, _short(margins=margins))
+    assert result.shipped_designs == 2
+    report = check_trajectory(spec, result.trajectory, limits=result.limits)
+    assert report.ok
+    qd = result.trajectory.evaluate(sample_times(20.0, spec.controller_rate_hz))[1]
+    assert np.allclose(result.limits.qd_max, 0.5 * spec.qd_max)
+    assert np.all(np.abs(qd) <= result.limits.qd_max + 1e-9)
+
+
+def test_excite_records_whether_the_shipped_designs_took_part(tmp_path):
+    from urident.cli.main import main
+
+    for flag, count in (([], 2), (["--no-library"], 0)):
+        out = tmp_path / f"t{count}.yaml"
+        args = ["excite", "--robot", "ur5e", "--reduced", "--out", str(out), "--starts", "1", "--iterations", "2",
+                "--quiet", *flag]
+        assert main(args) == 0
+        optimization = yaml.safe_load(out.read_text())["optimization"]
+        assert optimization["shipped_designs"] == count
+        assert load_trajectory(out).trajectory.harmonics == 5
+
+
+@pytest.mark.parametrize("edit, key", [
+    (lambda d: d["designs"][0].update(free_rad_s=[[0.1] * 8] * 5), "designs[0].free_rad_s"),
+    (lambda d: d["designs"][1].update(free_rad_s=[[float("nan")] * 8] * 6), "designs[1].free_rad_s"),
+    (lambda d: d["designs"][0].pop("q0_rad"), "designs[0]"),
+    (lambda d: d["designs"][0].update(model="tiny"), "designs[0]"),
+    (lambda d: d.update(format_version=7), "format_version"),
+])
+def test_a_malformed_designs_file_is_one_line_naming_the_key(tmp_path, edit, key):
+    document = yaml.safe_load(LIBRARY_FILE.read_text())
+    edit(document)
+    path = tmp_path / "designs.yaml"
+    path.write_text(yaml.safe_dump(document))
+    with pytest.raises(ConfigError) as info:
+        load_designs(path)
+    message = str(info.value)
+    assert message.startswith(f"{path}: {key}") and "\n" not in message
