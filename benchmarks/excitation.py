@@ -3,15 +3,16 @@ for the paper's reduced model and the full one: the default settings (time, cond
 run of the same optimiser with ten times its evaluations (its cond: the reference the default must come
 within 5 % of), and against random trajectories that satisfy the same constraints.
 
-The default starts from random candidates and the arm's shipped design (urident.excitation.library:
-seed 0 of the long run, made once); "the search alone" is the default without the shipped design, and
-the long run starts from random candidates only, so on a seed other than 0 it is a reference the
-shipped designs did not come from (on seed 0 the long run repeats the search that made them).
+Two runs of the default's search: with the arm's shipped designs among its candidates
+(urident.excitation.library: seed 0 of the long run, made once) and the search alone (random candidates
+only); `urident excite` uses the first with seed 0, the second with any other seed. The long run starts
+from random candidates only, so on a seed other than 0 it is a reference the shipped designs did not
+come from (on seed 0 it repeats the search that made them).
 
 Prints per model the default's wall and CPU time (this process and its worker processes), its
 cond(Θ̄_B) on the optimiser's criterion grid (columns scaled by reference RMS, see
 urident.excitation.criteria; cond(Λ) is its square) and at the controller rate, how its search ended,
-the search alone's, the long run's cond and the ratios (of the conds at the controller rate: the runs'
+the other run's, the long run's cond and the ratios (of the conds at the controller rate: the runs'
 criterion grids differ), and the median cond(Θ̄_B) of random feasible trajectories; then one summary
 line per robot and model, and last one JSON object. The machine is shared: the wall time depends on the
 load (printed), the CPU time much less.
@@ -82,10 +83,11 @@ def main() -> None:
             d = entry["default"]
             line = (f"{spec.name} {model}: default cond(Θ̄_B) {d['cond_dense']:.4g} in {d['wall_s']:.1f} s wall, "
                     f"{d['cpu_s']:.1f} s CPU")
-            line += f"; the search alone {entry['alone']['cond_dense']:.4g}"
+            line += (f" ({entry['default_is']}); with the designs {entry['designs']['cond_dense']:.4g}, the search "
+                     f"alone {entry['alone']['cond_dense']:.4g}")
             if "long" in entry:
-                line += (f"; long run {entry['long']['cond_dense']:.4g}; default / long = {entry['ratio']:.3f}, "
-                         f"the search alone / long = {entry['ratio_alone']:.3f}")
+                line += (f"; long run {entry['long']['cond_dense']:.4g}; default / long = {entry['ratio']:.3f} "
+                         f"(with the designs {entry['ratio_designs']:.3f}, alone {entry['ratio_alone']:.3f})")
             summary.append(line)
     print("summary (cond at the controller rate):")
     for line in summary:
@@ -97,29 +99,31 @@ def bench(spec, model: str, args) -> dict:
     reduced = model == "reduced"
     base = base_parameters(spec, reduced=reduced)
     settings = ExcitationSettings(harmonics=5, duration_s=20.0, reduced=reduced, seed=args.seed)
-    entry = {"n_base": base.n_base, "default": run(spec, settings, base, f"{spec.name} {model} default")}
-    d = entry["default"]
-    print(f"{spec.name} {model} model ({base.n_base} base parameters), L = 5, 20 s, seed {args.seed}: default "
-          f"{d['wall_s']:.1f} s wall ({d['cpu_s']:.1f} s CPU; load average {d['load_average']:.1f} on "
-          f"{os.cpu_count()} cores), cond(Θ̄_B) = {d['cond']:.4g} ({d['cond_dense']:.4g} at "
-          f"{spec.controller_rate_hz:g} Hz), {d['search']}, "
-          f"{d['shipped_designs']} shipped designs among the candidates"
-          + (", the result began at one" if d["from_shipped"] else "") + f", dense check ok: {d['check_ok']}")
-    entry["alone"] = alone = run(spec, replace(settings, library=False), base, f"{spec.name} {model} alone")
-    print(f"  the search alone (random candidates only, no shipped design): cond(Θ̄_B) = {alone['cond']:.4g} "
-          f"({alone['cond_dense']:.4g} at {spec.controller_rate_hz:g} Hz), {alone['wall_s']:.1f} s wall "
-          f"({alone['cpu_s']:.1f} s CPU), {alone['search']}")
+    print(f"{spec.name} {model} model ({base.n_base} base parameters), L = 5, 20 s, seed {args.seed} (load average "
+          f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores):")
+    entry = {"n_base": base.n_base}
+    for key, library, what in (("designs", True, "with the shipped designs among the candidates"),
+                               ("alone", False, "the search alone (random candidates only)")):
+        entry[key] = r = run(spec, replace(settings, library=library), base, f"{spec.name} {model} {key}")
+        print(f"  {what}: {r['wall_s']:.1f} s wall ({r['cpu_s']:.1f} s CPU), cond(Θ̄_B) = {r['cond']:.4g} "
+              f"({r['cond_dense']:.4g} at {spec.controller_rate_hz:g} Hz), {r['evaluations']:,} evaluations, "
+              f"{r['search']}" + (", began at a shipped design" if r["from_shipped"] else "")
+              + f", dense check ok: {r['check_ok']}")
+    # what `urident excite --seed S` does: the shipped designs with seed 0 only
+    entry["default_is"] = "designs" if args.seed == 0 else "alone"
+    entry["default"] = d = entry[entry["default_is"]]
+    print(f"  the default (urident excite --seed {args.seed}) is the {entry['default_is']} run")
     if not args.no_long:
         entry["long"] = long = run(spec, replace(settings, library=False, **LONG), base, f"{spec.name} {model} long")
-        entry["ratio"] = round(d["cond_dense"] / long["cond_dense"], 4)
-        entry["ratio_alone"] = round(alone["cond_dense"] / long["cond_dense"], 4)
+        for key in ("designs", "alone"):
+            entry[f"ratio_{key}"] = round(entry[key]["cond_dense"] / long["cond_dense"], 4)
+        entry["ratio"] = entry[f"ratio_{entry['default_is']}"]
         print(f"  long run ({LONG['candidates']} candidates, {LONG['starts']} starts, {LONG['finalists']} continued, "
-              f"up to {LONG['hop_rounds']} restart rounds below {LONG['hop_evaluations']:,} evaluations): "
-              f"cond(Θ̄_B) = {long['cond']:.4g} ({long['cond_dense']:.4g} at "
-              f"{spec.controller_rate_hz:g} Hz), {long['evaluations']:,} evaluations against the default's "
-              f"{d['evaluations']:,}, {long['wall_s']:.1f} s wall ({long['cpu_s']:.1f} s CPU); "
-              f"default / long = {entry['ratio']:.3f}, the search alone / long = {entry['ratio_alone']:.3f} "
-              f"(at {spec.controller_rate_hz:g} Hz)")
+              f"up to {LONG['hop_rounds']} restart rounds below {LONG['hop_evaluations']:,} evaluations, random "
+              f"candidates only): cond(Θ̄_B) = {long['cond']:.4g} ({long['cond_dense']:.4g} at "
+              f"{spec.controller_rate_hz:g} Hz), {long['evaluations']:,} evaluations, {long['wall_s']:.1f} s wall "
+              f"({long['cpu_s']:.1f} s CPU); with the designs / long = {entry['ratio_designs']:.3f}, the search "
+              f"alone / long = {entry['ratio_alone']:.3f} (at {spec.controller_rate_hz:g} Hz)")
     if args.random:
         start = time.perf_counter()
         conds = random_feasible_criteria(spec, replace(settings, criterion_samples=100), args.random,

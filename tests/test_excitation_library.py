@@ -63,6 +63,10 @@ def test_the_default_search_starts_from_the_arms_shipped_designs():
     # another order has no design: the same search as without the library
     other = optimize_excitation(spec, _short(harmonics=4, duration_s=10.0))
     assert other.shipped_designs == 0
+    # another seed asks for another trajectory: random candidates only, unless the designs are asked for
+    assert optimize_excitation(spec, _short(seed=1, screen_iterations=0, iterations=0)).shipped_designs == 0
+    forced = optimize_excitation(spec, _short(seed=1, library=True, screen_iterations=0, iterations=0))
+    assert forced.shipped_designs == 2 and forced.criteria.cond_theta == pytest.approx(shipped[0], rel=1e-6)
 
 
 def test_a_shipped_design_is_projected_onto_the_users_tighter_limits():
@@ -80,10 +84,12 @@ def test_a_shipped_design_is_projected_onto_the_users_tighter_limits():
 
 
 def test_excite_records_whether_the_shipped_designs_took_part(tmp_path):
+    """By default with seed 0 only; --library and --no-library say otherwise; the file records it."""
     from urident.cli.main import main
 
-    for flag, count in (([], 2), (["--no-library"], 0)):
-        out = tmp_path / f"t{count}.yaml"
+    cases = (([], 2), (["--no-library"], 0), (["--seed", "1"], 0), (["--seed", "1", "--library"], 2))
+    for k, (flag, count) in enumerate(cases):
+        out = tmp_path / f"t{k}.yaml"
         args = ["excite", "--robot", "ur5e", "--reduced", "--out", str(out), "--starts", "1", "--iterations", "2",
                 "--quiet", *flag]
         assert main(args) == 0

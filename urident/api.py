@@ -578,8 +578,8 @@ def design_excitation(robot, *, harmonics: int = 5, duration_s: float | None = N
     collision checks; ``for_payload``: design for the payload's ten parameters instead (needs the
     tool's size). ``options``: ``periods``, ``criterion`` (``cond`` or ``logdet``), ``q0``,
     ``starts``, ``iterations``, ``margins`` (a mapping of :class:`urident.excitation.Margins`
-    fields), ``max_velocity_rad_s`` (every joint's |q̇| bound besides the margins'), ``library`` (False: random
-    starts only, not also the arm's shipped design) as in :func:`urident.excitation.design.design`. The starts run in spawned processes:
+    fields), ``max_velocity_rad_s`` (every joint's |q̇| bound besides the margins'), ``library`` (the arm's shipped
+    designs join the random starts: True, False, or None, the default: with seed 0 only) as in :func:`urident.excitation.design.design`. The starts run in spawned processes:
     a script calling this needs the ``if __name__ == "__main__":`` guard.
 
     Returns an :class:`urident.excitation.design.ExcitationDesign`: ``trajectory``, ``cond``

@@ -68,10 +68,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         f"{SEARCH['window']} iterations), and as many (at most {SEARCH['polish_iterations']}) "
                         f"more for the best {SEARCH['polish']} on a finer criterion grid, until cond falls less "
                         f"than {_cond_percent(SEARCH['polish_tolerance'])} over {SEARCH['window']}")
-    p.add_argument("--no-library", dest="library", action="store_false",
-                   help="start from random candidates only, not also from urident's shipped design of the "
-                        "arm for this order (urident/excitation/designs.yaml: the best a ten times longer "
-                        "search found at the default settings)")
+    p.add_argument("--library", action=argparse.BooleanOptionalAction, default=None,
+                   help="--library: urident's shipped designs of the arm for this order join the random "
+                        "candidates (urident/excitation/designs.yaml: the best a ten times longer search found "
+                        "at the default settings); --no-library: random candidates only (default: the designs "
+                        "with seed 0 only; another seed asks for another trajectory, e.g. for validation)")
     p.add_argument("--budget", type=options.positive_float, default=None, metavar="SECONDS",
                    help="stop the search after this wall time [s] and keep the best point so far (the "
                         "dense checks after it add a few seconds); the output says how far from converged "

@@ -201,13 +201,13 @@ def design(robot: str | Path | RobotSpec, *, harmonics: int = 5, duration_s: flo
            q0=None, starts: int | None = None, iterations: int | None = None, budget_s: float | None = None,
            margins: Mapping[str, float] | None = None, for_payload: bool = False, payload=None,
            tool: ToolCapsule | None = None, payload_source: str = "payload", tool_source: str | None = None,
-           max_velocity_rad_s: float | None = None, library: bool = True,
+           max_velocity_rad_s: float | None = None, library: bool | None = None,
            progress: Callable[[str], None] | None = None) -> ExcitationDesign:
     """Optimise, check and return an excitation design (see :func:`urident.design_excitation`;
     ``payload`` is a :class:`urident.ident.payload.Payload`, ``*_source`` say where the payload and
     tool came from in the file's header; ``max_velocity_rad_s`` bounds every joint's |q̇| besides the
     margins', :func:`payload_velocity_cap` with ``for_payload``; ``library``: the arm's shipped designs
-    join the search's candidates, :mod:`urident.excitation.library`)."""
+    join the search's candidates, :mod:`urident.excitation.library`; None: with seed 0 only)."""
     robot_file = None
     if isinstance(robot, RobotSpec):
         spec = robot

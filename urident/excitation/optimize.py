@@ -3,8 +3,8 @@ base regressor over the Fourier coefficients, subject to joint, velocity, accele
 collision constraints (the problem and its exact gradient: :mod:`urident.excitation.problem`).
 
 Method (measured against L-BFGS-B with forward differences and a smooth bound of cond, README)
-* Starts: ``candidates`` random coefficient sets and (``library``) the arm's shipped designs of this
-  order (:mod:`urident.excitation.library`), scaled per joint onto the position, velocity and
+* Starts: ``candidates`` random coefficient sets and (``library``; by default with seed 0 only) the
+  arm's shipped designs of this order (:mod:`urident.excitation.library`), scaled per joint onto the position, velocity and
   acceleration limits and towards q0 until collision-free; the best ``starts`` of them.
 * Each start runs BFGS (a dense quasi-Newton matrix: 6·2(L−1) variables) on the penalised
   objective with its exact gradient, ``screen_iterations`` at first; the best ``finalists``
@@ -305,7 +305,7 @@ def _optimize(spec: RobotSpec, settings: ExcitationSettings | None, progress: Ca
     rng = np.random.default_rng(settings.seed)
 
     candidates = problem.shrink_to_collision_free(problem.random_coefficients(rng, settings.candidates))
-    shipped = starts_for(spec.name, settings.harmonics) if settings.library and not settings.for_payload else ()
+    shipped = starts_for(spec.name, settings.harmonics) if _uses_library(settings) else ()
     # a design is written at the clearance itself: shrunk only where it is inside it (other margins)
     shipped = (problem.shrink_to_collision_free(problem.project(shipped), buffer=False) if len(shipped)
                else np.empty((0, *candidates.shape[1:])))
@@ -402,6 +402,13 @@ def _optimize(spec: RobotSpec, settings: ExcitationSettings | None, progress: Ca
                             tuple(s.objective for s in starts), payload_cond, convergence,
                             time.process_time() - cpu_start + (sum(s.cpu_s for s in starts) if workers else 0.0),
                             len(shipped), best.shipped)
+
+
+def _uses_library(settings: ExcitationSettings) -> bool:
+    """Whether the arm's shipped designs join the candidates: ``library``, by default with seed 0 only
+    (the designs are one basin; a validation trajectory from another seed must differ from them)."""
+    chosen = settings.seed == 0 if settings.library is None else settings.library
+    return chosen and not settings.for_payload
 
 
 def _hops(problem: ExcitationProblem, settings: ExcitationSettings, best: _Start, first_key: int,

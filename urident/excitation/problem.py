@@ -65,7 +65,8 @@ class ExcitationSettings:
     reduced: bool = False                 # the paper's reduced (33) or the full (52) base parameters
     seed: int = 0
     candidates: int = 64                  # random feasible points scored before optimising, and
-    library: bool = True                  # the arm's shipped designs of this order (excitation.library)
+    library: bool | None = None           # the arm's shipped designs of this order (excitation.library);
+                                          # None: with seed 0 only (another seed asks for another trajectory)
     starts: int = 8                       # BFGS runs from the best candidates, screened ...
     screen_iterations: int = 60           # ... for this many iterations each, then
     finalists: int = 2                    # the best of them continued until converged
