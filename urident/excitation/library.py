@@ -3,13 +3,13 @@ default settings (order 5, 20 s, one period, the paper's offsets, the default ma
 starts of the default search.
 
 A design joins the random candidates of :func:`urident.excitation.optimize.optimize_excitation`
-whenever the arm's name and the number of harmonics match (any model, duration, offsets, margins,
-payload or tool): projected onto the user's limits and shrunk until collision-free like the random
-ones, then ranked with them by the same objective, so it becomes a start only where it scores among
-the best. The default search reaches a basin within 5 % of a ten times longer search on 13 of 18
-arm-and-model pairs from random candidates alone; which basin it reaches is a draw
-(docs/excitation.md). A design found by the long search once is a start every later search can
-begin from, on any seed.
+where the arm's name and the number of harmonics match (any model, duration, offsets, margins,
+payload or tool) and ``library`` says so (by default with seed 0 only: another seed asks for another
+trajectory): projected onto the user's limits, shrunk only where it is inside the user's clearance,
+then ranked with the random ones by the same objective, so it becomes a start only where it scores
+among the best. From random candidates alone the default search reaches a basin within 5 % of a ten
+times longer search on 13 of 18 arm-and-model pairs; which basin it reaches is a draw
+(docs/excitation.md). A design found by the long search once is a start later searches begin from.
 
 ``python -m urident.excitation.make_designs [--robots ur5e,ur10e] [--models reduced,full]`` reruns
 the long search (seed 0, without the designs: each comes from random candidates alone) and rewrites
