@@ -3,42 +3,33 @@ safe as written, and starts of the default search."""
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 import yaml
 
 from urident.errors import ConfigError
-from urident.excitation import check_trajectory, load_trajectory
-from urident.excitation.constraints import Limits, Margins
-from urident.excitation.criteria import evaluate_criteria
-from urident.excitation.fourier import FourierTrajectory, base_frequency, sample_times
+from urident.excitation import check_trajectory, load_trajectory, make_designs
+from urident.excitation.constraints import Margins
+from urident.excitation.fourier import sample_times
 from urident.excitation.library import LIBRARY_FILE, load_designs, starts_for
+from urident.excitation.make_designs import design_cond, recheck
 from urident.excitation.optimize import ExcitationSettings, optimize_excitation
 from urident.model import available_robots, load_robot
-from urident.model.base import base_parameters
-
-
-def _trajectory(design) -> FourierTrajectory:
-    return FourierTrajectory.from_free(design.free, base_frequency(design.duration_s), np.array(design.q0),
-                                       design.duration_s)
 
 
 def test_every_arm_has_a_current_design_of_each_model_that_passes_the_checks():
     """Each design's cond at the controller rate is the one recorded when it was made (a changed
     robot file or criterion makes it stale: remake it, module doc), and it passes every dense check
-    with the default margins."""
+    with the default margins (recheck); each records the seed of the long search that found it."""
     designs = load_designs()
+    assert all(d.seed is not None for d in designs)
     assert sorted((d.robot, d.model) for d in designs) == sorted(
         (robot, model) for robot in available_robots() for model in ("reduced", "full"))
     for d in designs:
-        spec = load_robot(d.robot)
-        trajectory = _trajectory(d)
-        t = sample_times(d.duration_s, spec.controller_rate_hz)
-        cond = evaluate_criteria(spec, base_parameters(spec, reduced=d.reduced), *trajectory.evaluate(t)).cond_theta
-        assert cond == pytest.approx(d.cond_theta, rel=1e-3), (d.robot, d.model)
-        report = check_trajectory(spec, trajectory, limits=Limits.from_robot(spec, Margins()),
-                                  collision_backend="numpy")
-        assert report.ok, (d.robot, d.model, report.violations[:3])
+        assert design_cond(d) == pytest.approx(d.cond_theta, rel=1e-3), (d.robot, d.model)
+        assert recheck(d) is not None, (d.robot, d.model)
 
 
 def _short(**over) -> ExcitationSettings:
@@ -114,3 +105,27 @@ def test_a_malformed_designs_file_is_one_line_naming_the_key(tmp_path, edit, key
         load_designs(path)
     message = str(info.value)
     assert message.startswith(f"{path}: {key}") and "\n" not in message
+
+
+def test_make_designs_keeps_the_best_of_its_seeds_and_the_shipped_design(tmp_path, monkeypatch, capsys):
+    """A remake keeps the shipped design where the new searches end above it, and with --replace the
+    lowest of its seeds, recording that seed; the other pairs' entries are left as they were."""
+    monkeypatch.setattr(make_designs, "LONG_SEARCH", dict(candidates=4, starts=1, finalists=1, screen_iterations=3,
+                                                          iterations=4, hops=0, polish=0, hop_rounds=0, workers=0))
+    path = tmp_path / "designs.yaml"
+    path.write_text(LIBRARY_FILE.read_text())
+    shipped = {(d.robot, d.model): d for d in load_designs()}
+    args = ["--robots", "ur5e", "--models", "reduced", "--seeds", "3,4", "--file", str(path)]
+    assert make_designs.main(args) == 0
+    assert "ur5e reduced: kept the shipped design" in capsys.readouterr().out
+    kept = {(d.robot, d.model): d for d in load_designs(path)}
+    assert kept.keys() == shipped.keys()
+    assert np.array_equal(kept["ur5e", "reduced"].free, shipped["ur5e", "reduced"].free)
+    assert make_designs.main([*args, "--replace"]) == 0
+    printed = capsys.readouterr().out
+    conds = {int(seed): float(cond) for seed, cond in re.findall(r"^ur5e reduced seed (\d+): cond\(Θ̄_B\) (\S+)$", printed, re.M)}
+    new = {(d.robot, d.model): d for d in load_designs(path)}
+    assert sorted(conds) == [3, 4] and new["ur5e", "reduced"].seed == min(conds, key=conds.get)
+    assert new["ur5e", "reduced"].cond_theta > shipped["ur5e", "reduced"].cond_theta
+    assert design_cond(new["ur5e", "reduced"]) == pytest.approx(new["ur5e", "reduced"].cond_theta, rel=1e-3)
+    assert all(np.array_equal(new[k].free, shipped[k].free) for k in shipped if k != ("ur5e", "reduced"))

@@ -1,5 +1,5 @@
-"""Shipped designs: the best trajectory a long search found for each UR arm and model, at the
-default settings (order 5, 20 s, one period, the paper's offsets, the default margins), used as
+"""Shipped designs: the best trajectory the long searches of several seeds found for each UR arm and
+model, at the default settings (order 5, 20 s, one period, the paper's offsets, the default margins), used as
 starts of the default search.
 
 A design joins the random candidates of :func:`urident.excitation.optimize.optimize_excitation`
@@ -11,9 +11,9 @@ among the best. From random candidates alone the default search reaches a basin 
 times longer search on 13 of 18 arm-and-model pairs; which basin it reaches is a draw
 (docs/excitation.md). A design found by the long search once is a start later searches begin from.
 
-``python -m urident.excitation.make_designs [--robots ur5e,ur10e] [--models reduced,full]`` reruns
-the long search (seed 0, without the designs: each comes from random candidates alone) and rewrites
-those entries of :data:`LIBRARY_FILE`; ``tests/test_excitation_library.py`` fails when a robot
+``python -m urident.excitation.make_designs [--robots ur5e,ur10e] [--models reduced,full] [--seeds 0,1,2]``
+reruns the long search (without the designs: each comes from random candidates alone) with each seed
+and keeps the best, the shipped design included unless ``--replace``, in :data:`LIBRARY_FILE`; ``tests/test_excitation_library.py`` fails when a robot
 file's change makes a design's recorded cond stale.
 """
 
@@ -26,6 +26,7 @@ import numpy as np
 import yaml
 
 from urident.errors import ConfigError
+from urident.excitation.fourier import FourierTrajectory, base_frequency
 from urident.yamlio import load_yaml
 
 LIBRARY_FILE = Path(__file__).with_name("designs.yaml")
@@ -48,6 +49,7 @@ class Design:
     cond_theta: float          # at the controller rate when it was made
     free: np.ndarray           # (6, 2(L−1)) free Fourier coefficients [rad/s]
     made: str = ""             # the date it was made (ISO)
+    seed: int | None = None    # the seed of the long search that found it
 
     @property
     def model(self) -> str:
@@ -72,7 +74,8 @@ def load_designs(path: Path = LIBRARY_FILE) -> list[Design]:
             free = np.asarray(entry["free_rad_s"], dtype=float)
             q0 = tuple(float(v) for v in entry["q0_rad"])
             design = Design(str(entry["robot"]), MODELS[entry["model"]], harmonics, float(entry["duration_s"]),
-                            q0, float(entry["cond_theta"]), free, str(entry.get("made", "")))
+                            q0, float(entry["cond_theta"]), free, str(entry.get("made", "")),
+                            None if entry.get("seed") is None else int(entry["seed"]))
         except (KeyError, TypeError, ValueError) as exc:
             raise ConfigError(f"{where}: {type(exc).__name__}: {exc}") from None
         if len(q0) != 6 or not np.all(np.isfinite(q0)):
@@ -90,18 +93,25 @@ def starts_for(robot: str, harmonics: int, path: Path = LIBRARY_FILE) -> np.ndar
     return np.array(found, dtype=float).reshape(len(found), 6, 2 * (harmonics - 1))
 
 
+def design_trajectory(design: Design):
+    """The design's trajectory (its free coefficients on its offsets and duration)."""
+    return FourierTrajectory.from_free(design.free, base_frequency(design.duration_s), np.array(design.q0),
+                                       design.duration_s)
+
+
 def design_document(designs: list[Design]) -> dict:
     """The YAML document of ``designs``."""
     return {"format": FORMAT_NAME, "format_version": FORMAT_VERSION, "designs": [
         {"robot": d.robot, "model": d.model, "harmonics": d.harmonics, "duration_s": d.duration_s,
          "q0_rad": [float(v) for v in d.q0], "cond_theta": round(d.cond_theta, 4), "made": d.made,
+         **({} if d.seed is None else {"seed": d.seed}),
          "free_rad_s": [[float(v) for v in row] for row in d.free]} for d in designs]}
 
 
 def write_designs(designs: list[Design], path: Path = LIBRARY_FILE) -> None:
     from urident.fileio import write_text_atomic
 
-    header = ("# urident's shipped excitation designs (urident/excitation/library.py): seed 0 of the long\n"
-              "# search, default settings; remade with: python -m urident.excitation.make_designs\n")
+    header = ("# urident's shipped excitation designs (urident/excitation/library.py): per arm and model the\n"
+              "# best of the long search's seeds, default settings; python -m urident.excitation.make_designs\n")
     text = yaml.safe_dump(design_document(designs), sort_keys=False, default_flow_style=None, width=200)
     write_text_atomic(path, header + text, fsync=False, overwrite=True)
