@@ -4,10 +4,11 @@ run of the same optimiser with ten times its evaluations (its cond: the referenc
 within 5 % of), and against random trajectories that satisfy the same constraints.
 
 Two runs of the default's search: with the arm's shipped designs among its candidates
-(urident.excitation.library: seed 0 of the long run, made once) and the search alone (random candidates
-only); `urident excite` uses the first with seed 0, the second with any other seed. The long run starts
-from random candidates only, so on a seed other than 0 it is a reference the shipped designs did not
-come from (on seed 0 it repeats the search that made them).
+(urident.excitation.library: the best of the long run's seeds, made once; each design records its
+seed) and the search alone (random candidates only); `urident excite` uses the first with seed 0, the
+second with any other seed. The long run starts from random candidates only, with --long-seed (default
+--seed): on a seed none of the designs came from it is a held-out reference, on one of theirs it
+repeats the search that made them.
 
 Prints per model the default's wall and CPU time (this process and its worker processes), its
 cond(Θ̄_B) on the optimiser's criterion grid (columns scaled by reference RMS, see
@@ -17,8 +18,8 @@ criterion grids differ), and the median cond(Θ̄_B) of random feasible trajecto
 line per robot and model, and last one JSON object. The machine is shared: the wall time depends on the
 load (printed), the CPU time much less.
 
-    python benchmarks/excitation.py [--robot ur5[,ur10e,...]] [--seed 1] [--models reduced,full]
-                                    [--random 1000] [--no-long]
+    python benchmarks/excitation.py [--robot ur5[,ur10e,...]] [--seed 1] [--long-seed 3]
+                                    [--models reduced,full] [--random 1000] [--no-long]
 """
 
 from __future__ import annotations
@@ -65,6 +66,7 @@ def main() -> None:
     parser.add_argument("--robot", default="ur5",
                         help="robot name or robot file, or several separated by commas (default ur5)")
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--long-seed", type=int, default=None, help="the long run's seed (default --seed)")
     parser.add_argument("--models", default="reduced,full", help="reduced, full, or both (reduced,full; the default)")
     parser.add_argument("--random", type=int, default=1000, help="random feasible trajectories (0: none)")
     parser.add_argument("--no-long", action="store_true", help="skip the long reference run")
@@ -74,7 +76,9 @@ def main() -> None:
     if not models or any(m not in ("reduced", "full") for m in models):
         parser.error(f"--models must be reduced, full, reduced,full or both, not {args.models!r}")
     specs = [load_robot(name) for name in args.robot.split(",")]
-    out = {"seed": args.seed, "cores": os.cpu_count(), "robots": {}}
+    if args.long_seed is None:
+        args.long_seed = args.seed
+    out = {"seed": args.seed, "long_seed": args.long_seed, "cores": os.cpu_count(), "robots": {}}
     summary = []
     for spec in specs:
         out["robots"][spec.name] = robot_out = {}
@@ -114,11 +118,12 @@ def bench(spec, model: str, args) -> dict:
     entry["default"] = d = entry[entry["default_is"]]
     print(f"  the default (urident excite --seed {args.seed}) is the {entry['default_is']} run")
     if not args.no_long:
-        entry["long"] = long = run(spec, replace(settings, library=False, **LONG), base, f"{spec.name} {model} long")
+        entry["long"] = long = run(spec, replace(settings, library=False, seed=args.long_seed, **LONG), base,
+                                   f"{spec.name} {model} long")
         for key in ("designs", "alone"):
             entry[f"ratio_{key}"] = round(entry[key]["cond_dense"] / long["cond_dense"], 4)
         entry["ratio"] = entry[f"ratio_{entry['default_is']}"]
-        print(f"  long run ({LONG['candidates']} candidates, {LONG['starts']} starts, {LONG['finalists']} continued, "
+        print(f"  long run (seed {args.long_seed}, {LONG['candidates']} candidates, {LONG['starts']} starts, {LONG['finalists']} continued, "
               f"up to {LONG['hop_rounds']} restart rounds below {LONG['hop_evaluations']:,} evaluations, random "
               f"candidates only): cond(Θ̄_B) = {long['cond']:.4g} ({long['cond_dense']:.4g} at "
               f"{spec.controller_rate_hz:g} Hz), {long['evaluations']:,} evaluations, {long['wall_s']:.1f} s wall "
