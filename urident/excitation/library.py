@@ -1,6 +1,6 @@
-"""Shipped designs: the best trajectory the long searches of several seeds found for each UR arm and
-model, at the default settings (order 5, 20 s, one period, the paper's offsets, the default margins), used as
-starts of the default search.
+"""Shipped designs: per UR arm and model the best trajectory the long searches of several seeds
+found at the default settings (order 5, 20 s, one period, the paper's offsets, the default margins),
+used as starts of the default search.
 
 A design joins the random candidates of :func:`urident.excitation.optimize.optimize_excitation`
 where the arm's name and the number of harmonics match (any model, duration, offsets, margins,
@@ -11,11 +11,11 @@ among the best. From random candidates alone the default search reaches a basin 
 times longer search on 13 of 18 arm-and-model pairs; which basin it reaches is a draw
 (docs/excitation.md). A design found by the long search once is a start later searches begin from.
 
-``python -m urident.excitation.make_designs [--robots ur5e,ur10e] [--models reduced,full] [--seeds 0,1,2]``
-reruns the long search (without the designs: each comes from random candidates alone) with each seed
-and keeps the best, the shipped design included unless ``--replace``, in :data:`LIBRARY_FILE`; ``tests/test_excitation_library.py`` fails when a robot
-file's change makes a design's recorded cond stale.
-"""
+``python -m urident.excitation.make_designs [--robots ur5e,ur10e] [--models reduced,full]
+[--seeds 0,1,2] [--replace]`` reruns the long search (without the designs: each comes from random
+candidates alone) with each seed and keeps the best, the shipped design included unless
+``--replace``, in :data:`LIBRARY_FILE`; ``tests/test_excitation_library.py`` fails when a robot
+file's change makes a design's recorded cond stale."""
 
 from __future__ import annotations
 
