@@ -41,6 +41,17 @@ few reversals then decide the held-out test of that direction. Of the terms that
 gain is taken. The Coulomb state
 with the lowest mean held-out RMS over joints is shared; a joint takes another (its own best,
 with the terms selected on it) only when that passes the same rule against the shared one.
+
+Then, on the chosen states together, each joint whose single terms all failed tries every pair of
+candidate terms (:func:`_best_pair`): one term at a time, forward selection misses two terms that
+pay only together (each alone helps some folds and hurts another). The pair search is some 100
+candidates a joint instead of 15, so a pair must pass both fold tests (mean above :data:`MIN_T`
+standard errors *and* positive on every fold), lower the joint's held-out RMS by 2 × :data:`MIN_GAIN`,
+and each of its terms must pass the rule beside the other (the pair against each term alone);
+the direction test holds for it as for one term. A joint that took a pair goes on as before.
+Pairs come after the states: let into the choice of the state, the wider search moved the real
+UR10e's shared presliding distance and cost it on its other recordings
+(``docs/friction-selection.md``).
 """
 
 from __future__ import annotations
@@ -75,6 +86,7 @@ FOLDS = 5
 # features with a part that is the same in both directions of motion: they set the difference
 # between the directions, which only samples of both directions can score
 DIRECTIONAL = ("offset", "asym", "sigoffset")
+PAIR_JOIN = " with "
 
 
 @dataclass(frozen=True)
@@ -155,6 +167,11 @@ class Step:
     t_stat: float
     by_direction: tuple[float, float] | None = None
     every_fold: bool = False         # the term lowered the held-out error of every fold
+    pair: bool = False               # two terms taken together (``term`` joins their labels)
+
+    @property
+    def labels(self) -> tuple[str, ...]:
+        return tuple(self.term.split(PAIR_JOIN)) if self.pair else (self.term,)
 
     @property
     def gain_pct(self) -> float:
@@ -211,7 +228,9 @@ class FrictionSelection:
         lines += [f"    {b:<18}" + " ".join(f"{v:6.3f}" for v in r) for b, r in self.bases]
         for j, c in enumerate(self.joints):
             chosen = ", ".join(f"{s.term} ({s.rms_before:.3f} -> {s.rms_after:.3f}, -{s.gain_pct:.1f} %, "
-                               f"t {s.t_stat:.1f}{', every fold' if s.every_fold else ''})" for s in c.steps) or "none"
+                               f"t {s.t_stat:.1f}{', every fold' if s.every_fold else ''}"
+                               f"{', together' if s.pair else ''})"
+                               for s in c.steps) or "none"
             rej = ("" if c.rejected is None else
                    f"; best rejected: {c.rejected.term} ({-c.rejected.gain_pct:+.1f} %, t {c.rejected.t_stat:.1f}"
                    + ("" if c.rejected.by_direction is None or min(c.rejected.by_direction) > 0 else
@@ -246,7 +265,7 @@ class FrictionSelection:
                 "direction_share": list(self.direction_share),
                 "directional_joints": [j + 1 for j in self.directional_joints],
                 "bases": {b: [float(v) for v in r] for b, r in self.bases}, "mean_cv_rms_nm": self.mean_rms_nm,
-                "joints": [{"coulomb": c.coulomb, "terms": [s.term for s in c.steps], "cv_rms_nm": c.rms,
+                "joints": [{"coulomb": c.coulomb, "terms": [x for s in c.steps for x in s.labels], "cv_rms_nm": c.rms,
                             "steps": [vars(s) | {"gain_pct": s.gain_pct, "by_direction": None if s.by_direction is None
                                                   else list(s.by_direction)} for s in c.steps],
                             "rejected": None if c.rejected is None else c.rejected.term}
@@ -369,20 +388,26 @@ def _is_directional(t: Term) -> bool:
 
 
 def _select(fac: _Factors, terms: tuple[Term, ...], offered: np.ndarray,
-            directional: np.ndarray) -> tuple[list[list[str]], list[JointChoice]]:
+            directional: np.ndarray, pairs: bool = False,
+            start=None) -> tuple[list[list[str]], list[JointChoice]]:
     """Greedy forward selection of each joint's terms (module doc); ``offered`` (6,): the joints
-    whose temperature terms are tried; ``directional`` (6,): those whose directional terms are."""
-    sels: list[list[str]] = [[] for _ in range(6)]
-    steps: list[list[Step]] = [[] for _ in range(6)]
+    whose temperature terms are tried; ``directional`` (6,): those whose directional terms are.
+    ``pairs``: a joint whose single terms fail tries pairs; ``start``: (features, steps) per joint
+    already chosen, whose single terms have failed (the joints try pairs first)."""
+    sels: list[list[str]] = [list(x) for x in start[0]] if start else [[] for _ in range(6)]
+    steps: list[list[Step]] = [list(x) for x in start[1]] if start else [[] for _ in range(6)]
     rejected: list[Step | None] = [None] * 6
     open_ = [True] * 6
+    # from a start, each joint's single terms have failed already: it looks at pairs first
+    singles_failed = [bool(start)] * 6
     n = np.sum(fac.n_test)
     while any(open_):
         base_sq = np.zeros((fac.folds, 6))
         base_dir = np.zeros((6, 2))      # per joint, held-out squared error by direction, summed over folds
         cand: list[list[tuple[Term, np.ndarray, np.ndarray]]] = [[] for _ in range(6)]
+        others = [fac.others(f, sels) for f in range(fac.folds)]
         for f in range(fac.folds):
-            ow, w = fac.others(f, sels)
+            ow, w = others[f]
             for j in range(6):
                 if not open_[j]:
                     continue
@@ -410,20 +435,62 @@ def _select(fac: _Factors, terms: tuple[Term, ...], offered: np.ndarray,
                 step = Step(t.label, float(before), float(np.sqrt(sq.sum() / n)), t_stat, by_dir, every)
                 if best_any is None or step.rms_after < best_any.rms_after:
                     best_any = step
-                if consistent and step.gain_pct >= 100 * MIN_GAIN and (by_dir is None or min(by_dir) > 0):
+                if (consistent and not singles_failed[j] and step.gain_pct >= 100 * MIN_GAIN
+                        and (by_dir is None or min(by_dir) > 0)):
                     if best is None or step.rms_after < best[0]:
-                        best = (step.rms_after, step)
-            if best is None or len(steps[j]) >= MAX_TERMS:
+                        best = (step.rms_after, step, t.features)
+            n_terms = sum(len(s.labels) for s in steps[j])
+            if pairs and best is None and n_terms + 2 <= MAX_TERMS:
+                best = _best_pair(fac, j, sels[j], others, base_sq[:, j], base_dir[j], cand[j], n)
+            if best is None or n_terms >= MAX_TERMS:
                 open_[j] = False
                 rejected[j] = best_any if best is None else best[1]
                 continue
             step = best[1]
-            term = next(t for t in terms if t.label == step.term)
-            sels[j] += list(term.features)
+            sels[j] += list(best[2])
             steps[j].append(step)
+            singles_failed[j] = False
     sq = fac.held_out(sels)
     rms = np.sqrt(sq.sum(axis=0) / n)
     return sels, [(tuple(steps[j]), rejected[j], float(rms[j])) for j in range(6)], sq / fac.n_test[:, None]
+
+
+def _best_pair(fac: _Factors, j: int, sel: list[str], others, base_sq: np.ndarray, base_dir: np.ndarray,
+               singles, n: float):
+    """The best pair of joint j's candidate terms that passes the term rule together where neither
+    passed alone (module doc), as (held-out RMS, :class:`Step`, features), or None. ``singles``:
+    each candidate (term, per-fold held-out squared error, by direction) of this round."""
+    before = np.sqrt(base_sq.sum() / n)
+    best = None
+    for a in range(len(singles)):
+        for b in range(a + 1, len(singles)):
+            (ta, sq_a, _), (tb, sq_b, _) = singles[a], singles[b]
+            feats = ta.features + tb.features
+            if len(set(feats)) < len(feats):
+                continue
+            sq = np.zeros(fac.folds)
+            sq_dir = np.zeros(2)
+            for f in range(fac.folds):
+                ow, w = others[f]
+                sq[f], by_dir = fac.candidate(f, j, sel + list(feats), ow[j], w[j])
+                sq_dir += by_dir
+            rms = float(np.sqrt(sq.sum() / n))
+            t_stat, every, _ = fold_test((base_sq - sq) / fac.n_test)
+            if not (every and t_stat > MIN_T) or rms > (1 - 2 * MIN_GAIN) * before:
+                continue
+            if best is not None and rms >= best[0]:
+                continue
+            # each term pays for itself beside the other
+            if not all(fold_test((one - sq) / fac.n_test)[2] and rms <= (1 - MIN_GAIN) * np.sqrt(one.sum() / n)
+                       for one in (sq_a, sq_b)):
+                continue
+            directional = _is_directional(ta) or _is_directional(tb)
+            by_dir = tuple(float(v) for v in base_dir - sq_dir) if directional else None
+            if by_dir is not None and min(by_dir) <= 0:
+                continue
+            best = (rms, Step(ta.label + PAIR_JOIN + tb.label, float(before), rms, t_stat, by_dir, every, True),
+                    feats)
+    return best
 
 
 def fold_test(d: np.ndarray) -> tuple[float, bool, bool]:
@@ -490,12 +557,26 @@ def select_friction(spec, data: Prepared, model: ModelConfig | None = None, fold
     pick = _coulomb_states(rms, np.stack([r[4] for r in results]))
     states = tuple("tanh" if results[b][1].coulomb == "tanh" else f"dahl@{results[b][1].dahl_rad:g}"
                    for b in pick)
-    chosen = replace(model, coulomb="tanh", dahl_source="velocity", extras=(), joint_coulomb=states,
-                     joint_extras=tuple(tuple(joint_feature(f, t_ref, j) for f in results[b][2][j])
-                                        for j, b in enumerate(pick)))
-    # the joints' states come from different runs: the model they make is scored as a whole
+    # the chosen states together; on them the selection goes on with pairs of terms too (the
+    # wider search comes after the states are chosen, so it cannot pick them)
+    mixed = replace(model, coulomb="tanh", dahl_source="velocity", extras=(), joint_coulomb=states,
+                    joint_extras=())
+    terms = family(mixed, bool(offered.any()))
+    own = [results[b][3][j] for j, b in enumerate(pick)]       # (steps, rejected, rms) per joint
+    with Progress("friction selection (pairs of terms)", 1) as progress:
+        fac = _Factors(spec, mixed, terms, data, folds)
+        with one_blas_thread():
+            sels, chosen_joints, _ = _select(fac, terms, offered, shares >= MIN_DIRECTION_SHARE, pairs=True,
+                                             start=([results[b][2][j] for j, b in enumerate(pick)],
+                                                    [o[0] for o in own]))
+        progress.advance(1)
+    chosen = replace(mixed, joint_extras=tuple(tuple(joint_feature(f, t_ref, j) for f in sels[j])
+                                               for j in range(6)))
+    # scored as a whole by the same CV the report's users run
     final = cross_validate(spec, data, chosen, "joint", "ols", folds).rms_nm
-    joints = tuple(JointChoice(states[j], *results[b][3][j][:2], float(final[j])) for j, b in enumerate(pick))
+    # a joint that took no pair keeps what its own run rejected last (its singles were not retried)
+    joints = tuple(JointChoice(states[j], *(c[:2] if len(c[0]) > len(o[0]) else o[:2]), float(final[j]))
+                   for j, (c, o) in enumerate(zip(chosen_joints, own)))
     return FrictionSelection(chosen, joints, tuple((r[0], rms[k]) for k, r in enumerate(results)),
                              tuple(t.label for t in family(bases[0][1], bool(offered.any()))), folds,
                              None if t_ref is None else tuple(float(v) for v in t_ref),
